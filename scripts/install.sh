@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# Creates (or reuses) the virtual environment given as $1 (default .venv) and installs the project into it.
+# torch==2.13.0 goes first: a plain `torch` requirement on a machine without torch would pull a CUDA build of several GB.
+set -euo pipefail
+venv="${1:-.venv}"
+[ -x "$venv/bin/python" ] || python3 -m venv "$venv"
+"$venv/bin/python" -m pip install -q --upgrade pip
+"$venv/bin/python" -m pip install -q "torch==2.13.0"
+"$venv/bin/python" -m pip install -q -e ".[tests,zoo]"

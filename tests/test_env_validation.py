@@ -1,0 +1,80 @@
+"""Every validated parameter rejects a bad value with a ValueError naming it (SPEC 1.1)."""
+
+import numpy as np
+import pytest
+
+from sb3_maddpg_envs import uav_coverage_v0
+from sb3_maddpg_envs.uav_coverage.core import UAVCoverageCore
+
+BAD_VALUES = [
+    ("map_size", 0),
+    ("map_size", 2.5),
+    ("map_size", True),
+    ("n_uavs", 0),
+    ("n_uavs", "six"),
+    ("max_energy", 0.0),
+    ("max_energy", -5.0),
+    ("max_energy", float("nan")),
+    ("max_distance", 0.0),
+    ("move_energy", -1.0),
+    ("hover_energy", 0.0),
+    ("coverage_range", 0.0),
+    ("coverage_range", 7.0),  # > comm_range 6
+    ("comm_range", -1.0),
+    ("comm_range", float("inf")),
+    ("wall_penalty", -1.0),
+    ("comm_penalty", -0.5),
+    ("entropy_coef", -0.1),
+    ("eps", 0.0),
+    ("eps", 1.0),
+    ("max_cycles", 0),
+    ("max_cycles", 10.5),
+    ("obs_size", 0),
+    ("obs_size", 81),  # not a multiple of map_size 16
+    ("reward_scale", 0.0),
+    ("reward_clip", -1.0),
+    ("poi_threshold", 1.5),
+    ("start", "anywhere"),
+    ("start", [[1.0, 1.0]]),  # 1 row for 6 UAVs
+    ("start", [[1.0, 1.0]] * 5 + [[16.0, 1.0]]),  # outside [0, 16)
+    ("pois", [[0.0, 0.0], [16.0, 3.0]]),  # outside
+    ("pois", "no_such_file.png"),
+    ("n_pois", 5),  # only with pois="uniform"
+]
+
+
+@pytest.mark.parametrize("name, value", BAD_VALUES, ids=[f"{n}={v!r}"[:40] for n, v in BAD_VALUES])
+def test_bad_value_names_the_parameter(name, value):
+    with pytest.raises(ValueError, match=name):
+        UAVCoverageCore(**{name: value})
+
+
+def test_message_shows_value_and_what_is_accepted():
+    with pytest.raises(ValueError, match=r"max_energy must be a finite number > 0, got -5\.0"):
+        UAVCoverageCore(max_energy=-5.0)
+    with pytest.raises(ValueError, match=r"obs_size must be a positive multiple of map_size=16, got 81"):
+        UAVCoverageCore(obs_size=81)
+
+
+def test_uniform_n_pois_validated():
+    with pytest.raises(ValueError, match="n_pois"):
+        UAVCoverageCore(pois="uniform", n_pois=0)
+
+
+def test_env_validates_at_construction():
+    with pytest.raises(ValueError, match="n_uavs"):
+        uav_coverage_v0.parallel_env(n_uavs=0)
+    with pytest.raises(ValueError, match="render_mode"):
+        uav_coverage_v0.parallel_env(render_mode="human")
+    env = uav_coverage_v0.parallel_env(n_uavs=2, obs_size=16)
+    with pytest.raises(ValueError, match="max_cycles"):
+        env.max_cycles = 0
+
+
+def test_nan_action_through_the_env_raises():
+    env = uav_coverage_v0.parallel_env(n_uavs=2, obs_size=16)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="finite"):
+        env.step({"uav_0": np.array([np.nan, 0.5]), "uav_1": np.array([0.1, 0.5])})
+    with pytest.raises(ValueError, match="uav_1"):
+        env.step({"uav_0": np.array([0.1, 0.5])})

@@ -1,0 +1,396 @@
+"""
+The project's command: ``python -m sb3_maddpg <command> ...`` (also installed as ``sb3_maddpg``).
+
+- ``train``, ``optimize`` and ``enjoy`` run RL Zoo's own train, Optuna and enjoy code (every ``rl_zoo3`` flag works)
+  with MADDPG and the multi-agent envs registered into it; ``--algo maddpg``, ``--env uav_coverage_v0`` and
+  ``-conf zoo_configs/maddpg.yml`` are the defaults.
+- ``evaluate`` compares a trained model with the random and greedy static baselines and draws the report's figures.
+- ``plot`` draws the report's training figures from a run's logs.
+
+Bad input (unknown env, missing file, unknown YAML key, bad ``--env-kwargs``) ends with a one-line message on stderr
+and exit status 2, as argparse does.
+"""
+
+import argparse
+import difflib
+import importlib
+import os
+import sys
+import zipfile
+from pathlib import Path
+from typing import Any, NoReturn
+
+import yaml
+
+from sb3_maddpg.zoo.registry import UsageError, check_env_kwargs
+
+PROG = "sb3_maddpg"
+ZOO_COMMANDS = ("train", "optimize", "enjoy")
+DEFAULT_ALGO = "maddpg"
+DEFAULT_ENV = "uav_coverage_v0"
+DEFAULT_CONFIG = Path("zoo_configs") / "maddpg.yml"
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# Argument helpers
+# ---------------------------------------------------------------------------------------------------------------------
+def parse_key_values(items: list[str] | None, flag: str) -> dict[str, Any] | None:
+    """
+    Parse ``key:value`` items as RL Zoo's ``StoreDict`` does (the value is a Python expression), with a clear error.
+
+    :param items: the items after the flag
+    :param flag: the flag's name, for messages
+    :return: the dict, or None when the flag was not given
+    """
+    if items is None:
+        return None
+    parsed: dict[str, Any] = {}
+    for item in items:
+        key, separator, value = item.partition(":")
+        if not separator or not key:
+            raise UsageError(f"{flag}: expected key:value items, got {item!r}")
+        try:
+            # The same evaluation as RL Zoo's StoreDict, which will parse these arguments again.
+            parsed[key] = eval(value)
+        except Exception as error:
+            raise UsageError(
+                f"{flag}: cannot read the value of {key!r} ({value!r}: {error}); "
+                f"values are Python expressions, so strings need quotes, e.g. {key}:\"'text'\""
+            ) from error
+    return parsed
+
+
+def _has_flag(argv: list[str], *flags: str) -> bool:
+    return any(arg == flag or arg.startswith(flag + "=") for arg in argv for flag in flags)
+
+
+def _default_config() -> str:
+    """The project's ``zoo_configs/maddpg.yml``: in the working directory, else next to the installed sources."""
+    for candidate in (Path.cwd() / DEFAULT_CONFIG, Path(__file__).resolve().parent.parent / DEFAULT_CONFIG):
+        if candidate.is_file():
+            return os.fspath(candidate)
+    raise UsageError(f"no -conf given and {DEFAULT_CONFIG} was not found; pass -conf PATH/TO/maddpg.yml")
+
+
+def _zoo_preparser(command: str) -> argparse.ArgumentParser:
+    """The RL Zoo flags the command checks before handing over; every other flag goes to RL Zoo untouched."""
+    parser = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
+    parser.add_argument("--algo", default=DEFAULT_ALGO)
+    parser.add_argument("--env", default=DEFAULT_ENV)
+    parser.add_argument("--env-kwargs", nargs="+")
+    parser.add_argument("--gym-packages", nargs="+", default=[])
+    if command == "enjoy":
+        parser.add_argument("-f", "--folder", default="logs")
+        parser.add_argument("--exp-id", type=int, default=0)
+        parser.add_argument("--load-best", action="store_true")
+        parser.add_argument("--load-checkpoint", type=int)
+        parser.add_argument("--load-last-checkpoint", action="store_true")
+    else:
+        parser.add_argument("-conf", "--conf-file")
+        parser.add_argument("--eval-env-kwargs", nargs="+")
+        parser.add_argument("-params", "--hyperparams", nargs="+")
+        parser.add_argument("-i", "--trained-agent", default="")
+        parser.add_argument("-f", "--log-folder", default="logs")
+        parser.add_argument("--storage")
+        parser.add_argument("--study-name")
+    return parser
+
+
+def _check_env(env_id: str, algo: str) -> None:
+    import gymnasium as gym
+
+    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, is_multiagent_env
+
+    if env_id not in gym.registry:
+        close = difflib.get_close_matches(env_id, list(MULTIAGENT_ENVS) + list(gym.registry), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise UsageError(
+            f"unknown env {env_id!r}{hint}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))} "
+            "(add your own with sb3_maddpg.zoo.register_multiagent_env and --gym-packages)"
+        )
+    if algo == "maddpg" and not is_multiagent_env(env_id):
+        raise UsageError(
+            f"--algo maddpg needs a multi-agent env, and {env_id!r} is a single-agent Gymnasium env; "
+            f"multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}"
+        )
+
+
+def _check_config(config: str, env_id: str) -> None:
+    if not os.path.isfile(config):
+        raise UsageError(f"config file {config} not found")
+    if not config.endswith((".yml", ".yaml")):
+        return
+    try:
+        with open(config) as file:
+            entries = yaml.safe_load(file) or {}
+    except yaml.YAMLError as error:
+        raise UsageError(f"cannot read {config}: {error}".replace("\n", " ")) from error
+    if not isinstance(entries, dict):
+        raise UsageError(f"{config} must map env ids to hyperparameter entries")
+    if env_id not in entries and "default" not in entries:
+        raise UsageError(f"{config} has no entry for {env_id!r}; its entries: {', '.join(map(str, entries))}")
+
+
+def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
+    """
+    Check what can be checked before RL Zoo runs and add this command's defaults.
+
+    :param command: ``train``, ``optimize`` or ``enjoy``
+    :param argv: the arguments after the command
+    :return: the arguments RL Zoo's parser gets
+    """
+    from sb3_maddpg.zoo.registry import is_multiagent_env
+
+    argv = list(argv)
+    if _has_flag(argv, "-h", "--help"):
+        return argv
+    args, _ = _zoo_preparser(command).parse_known_args(argv)
+    for module in args.gym_packages:
+        try:
+            importlib.import_module(module)
+        except ImportError as error:
+            raise UsageError(f"--gym-packages: cannot import {module!r}: {error}") from error
+
+    if not _has_flag(argv, "--algo"):
+        argv = ["--algo", DEFAULT_ALGO, *argv]
+    if not _has_flag(argv, "--env"):
+        argv = ["--env", DEFAULT_ENV, *argv]
+    _check_env(args.env, args.algo)
+
+    env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs")
+    if env_kwargs is not None and is_multiagent_env(args.env):
+        check_env_kwargs(args.env, env_kwargs, flag="--env-kwargs")
+
+    if command == "enjoy":
+        if not _has_flag(argv, "-f", "--folder"):
+            # RL Zoo's default folder downloads models from the Hugging Face hub; this project's runs are in logs/.
+            argv += ["-f", args.folder]
+        from huggingface_sb3 import EnvironmentName
+        from rl_zoo3.utils import get_model_path
+
+        try:
+            get_model_path(
+                args.exp_id,
+                args.folder,
+                args.algo,
+                EnvironmentName(args.env),
+                args.load_best,
+                args.load_checkpoint,
+                args.load_last_checkpoint,
+            )
+        except (AssertionError, ValueError) as error:
+            raise UsageError(f"no trained model to load: {error} (train one first, or pass -f LOG_FOLDER)") from error
+        return argv
+
+    eval_env_kwargs = parse_key_values(args.eval_env_kwargs, "--eval-env-kwargs")
+    if eval_env_kwargs is not None and is_multiagent_env(args.env):
+        check_env_kwargs(args.env, eval_env_kwargs, flag="--eval-env-kwargs")
+    parse_key_values(args.hyperparams, "--hyperparams")
+    config = args.conf_file
+    if config is None and args.algo == DEFAULT_ALGO:
+        config = _default_config()
+        argv += ["-conf", config]
+    if config is not None:
+        _check_config(config, args.env)
+    if args.trained_agent and not (args.trained_agent.endswith(".zip") and os.path.isfile(args.trained_agent)):
+        raise UsageError(f"--trained-agent: {args.trained_agent} is not an existing .zip model file")
+
+    if command == "optimize":
+        argv.append("-optimize")
+        if not _has_flag(argv, "--no-optim-plots"):
+            # Optuna's plots need plotly and open a browser: off unless asked for.
+            argv.append("--no-optim-plots")
+        storage = args.storage
+        if storage is None:
+            folder = Path(args.log_folder) / args.algo
+            folder.mkdir(parents=True, exist_ok=True)
+            storage = f"sqlite:///{folder / 'optuna.db'}"
+            argv += ["--storage", storage]
+        elif "://" not in storage and not storage.endswith(".log"):
+            # A plain file name means a local SQLite database.
+            Path(storage).parent.mkdir(parents=True, exist_ok=True)
+            index = argv.index("--storage") if "--storage" in argv else None
+            if index is not None:
+                argv[index + 1] = f"sqlite:///{storage}"
+        if args.study_name is None:
+            argv += ["--study-name", f"{args.algo}_{args.env}"]
+    return argv
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# Commands
+# ---------------------------------------------------------------------------------------------------------------------
+def run_zoo_command(command: str, argv: list[str]) -> None:
+    """
+    Run RL Zoo's train, Optuna search or enjoy with MADDPG and the multi-agent envs registered.
+
+    :param command: ``train``, ``optimize`` or ``enjoy``
+    :param argv: RL Zoo's arguments
+    """
+    from sb3_maddpg.zoo import integration
+
+    integration.register_with_rl_zoo()
+    zoo_argv = prepare_zoo_argv(command, argv)
+    if command == "enjoy":
+        integration.run_enjoy(zoo_argv)
+    else:
+        integration.run_train(zoo_argv)
+
+
+def run_evaluate(args: argparse.Namespace) -> None:
+    """
+    The ``evaluate`` command.
+
+    :param args: parsed arguments
+    """
+    from sb3_maddpg.evaluation.report import DEFAULT_ENV_ID, evaluate_and_report, find_run_config
+    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS
+
+    model_path = args.model
+    run_env_id, run_env_kwargs = None, {}
+    if model_path is not None:
+        if not os.path.isfile(model_path) and os.path.isfile(model_path + ".zip"):
+            model_path += ".zip"
+        if not os.path.isfile(model_path):
+            raise UsageError(f"--model: model file {args.model} not found")
+        if not zipfile.is_zipfile(model_path):
+            raise UsageError(f"--model: {model_path} is not a saved model (.zip)")
+        run_env_id, run_env_kwargs = find_run_config(model_path)
+    if args.episodes < 1:
+        raise UsageError(f"--episodes must be >= 1, got {args.episodes}")
+    env_id = args.env or run_env_id or DEFAULT_ENV_ID
+    if env_id not in MULTIAGENT_ENVS:
+        raise UsageError(f"unknown env {env_id!r}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
+    env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs") or {}
+    check_env_kwargs(env_id, {**run_env_kwargs, "start": "random", **env_kwargs}, flag="--env-kwargs")
+    evaluate_and_report(
+        args.out,
+        n_episodes=args.episodes,
+        model_path=model_path,
+        env_id=env_id,
+        env_kwargs=env_kwargs,
+        seed=args.seed,
+        device=args.device,
+        state_steps=args.state_steps,
+        gif=not args.no_gif,
+        verbose=args.verbose,
+    )
+
+
+def run_plot(args: argparse.Namespace) -> None:
+    """
+    The ``plot`` command.
+
+    :param args: parsed arguments
+    """
+    from sb3_maddpg.evaluation.figures import plot_training_logs
+
+    if not os.path.exists(args.log):
+        raise UsageError(f"--log: {args.log} not found")
+    if args.window is not None and args.window < 1:
+        raise UsageError(f"--window must be >= 1, got {args.window}")
+    try:
+        paths = plot_training_logs(args.log, args.out, window=args.window)
+    except FileNotFoundError as error:
+        raise UsageError(str(error)) from error
+    for path in paths:
+        print(path)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """
+    :return: the command's parser (``train``, ``optimize`` and ``enjoy`` hand their arguments to RL Zoo's parsers)
+    """
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description="MADDPG with quantile-CVaR critics for Stable-Baselines3, run through RL Zoo.",
+        epilog=f"`{PROG} COMMAND -h` shows a command's options (train, optimize and enjoy: RL Zoo's).",
+    )
+    from sb3_maddpg import __version__
+
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+    commands.add_parser("train", help="train with RL Zoo (rl_zoo3 train flags)", add_help=False)
+    commands.add_parser("optimize", help="tune hyperparameters with RL Zoo's Optuna search (default storage: SQLite)")
+    commands.add_parser("enjoy", help="watch a trained agent with RL Zoo's enjoy (rl_zoo3 enjoy flags)")
+
+    evaluate = commands.add_parser(
+        "evaluate",
+        help="evaluate a model against the random and greedy static baselines; write tables and figures",
+        description="Run N episodes (start='random', deterministic actions) for the model and the two baselines, "
+        "print the table of c_T, f_T, e_T, eta_T (mean ± std) and write CSV, JSON and the report's figures.",
+    )
+    source = evaluate.add_mutually_exclusive_group(required=True)
+    source.add_argument("--model", help="a saved MADDPG model (.zip), e.g. logs/maddpg/uav_coverage_v0_1/uav_coverage_v0.zip")
+    source.add_argument("--baselines-only", action="store_true", help="evaluate the two baselines only")
+    evaluate.add_argument("--episodes", type=int, default=10, help="episodes per method (default: 10)")
+    evaluate.add_argument("--out", default=os.path.join("results", "evaluation"), help="output folder")
+    evaluate.add_argument("--env", help="env id (default: the model's training env, else uav_coverage_v0)")
+    evaluate.add_argument(
+        "--env-kwargs",
+        nargs="+",
+        metavar="KEY:VALUE",
+        help="env arguments over the model's training ones, e.g. max_cycles:100",
+    )
+    evaluate.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
+    evaluate.add_argument("--device", default="auto", help="device of the model (default: auto)")
+    evaluate.add_argument(
+        "--state-steps", type=int, nargs="+", help="steps of the recorded episode drawn as state images (default: 0, T/2, T)"
+    )
+    evaluate.add_argument("--no-gif", action="store_true", help="do not write the episode GIF")
+    evaluate.add_argument("--verbose", type=int, default=1, help="0: quiet, 1: table, 2: every episode")
+
+    plot = commands.add_parser(
+        "plot",
+        help="draw the report's training figures from a run's logs",
+        description="Fairness vs coverage, fairness vs energy efficiency and each metric vs episode, from a training "
+        "run's monitor.csv (one point per episode) or its TensorBoard events.",
+    )
+    plot.add_argument(
+        "--log",
+        required=True,
+        help="an RL Zoo run folder (logs/maddpg/uav_coverage_v0_1), a monitor.csv or a TensorBoard folder",
+    )
+    plot.add_argument("--out", default=os.path.join("results", "figures"), help="output folder")
+    plot.add_argument("--window", type=int, help="moving-average window (default: a twentieth of the episodes)")
+    return parser
+
+
+def _fail(command: str | None, message: str) -> NoReturn:
+    prefix = f"{PROG} {command}" if command else PROG
+    sys.stderr.write(f"{prefix}: error: {message}\n")
+    raise SystemExit(2)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """
+    Entry point of ``python -m sb3_maddpg`` and of the ``sb3_maddpg`` console script.
+
+    :param argv: arguments (default: ``sys.argv[1:]``)
+    :return: exit status 0; errors exit through ``SystemExit`` with status 2
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    if not argv:
+        parser.print_help(sys.stderr)
+        return 2
+    command = argv[0]
+    try:
+        if command in ZOO_COMMANDS:
+            run_zoo_command(command, argv[1:])
+            return 0
+        args = parser.parse_args(argv)
+        if args.command == "evaluate":
+            run_evaluate(args)
+        elif args.command == "plot":
+            run_plot(args)
+        else:
+            parser.print_help(sys.stderr)
+            return 2
+    except UsageError as error:
+        _fail(command if command in (*ZOO_COMMANDS, "evaluate", "plot") else None, str(error))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

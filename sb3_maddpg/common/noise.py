@@ -1,0 +1,81 @@
+"""Exploration noise for MADDPG."""
+
+import numpy as np
+import numpy.typing as npt
+from stable_baselines3.common.noise import ActionNoise, VectorizedActionNoise
+
+
+class DecayingGaussianNoise(ActionNoise):
+    """
+    Gaussian action noise whose standard deviation decays geometrically towards a floor.
+
+    After ``k`` calls the noise has standard deviation
+    ``sigma_k = final_sigma + (sigma - final_sigma) * decay**k``,
+    so it starts at ``sigma`` and approaches ``final_sigma``. The report's schedule, 1.0 decaying towards 0.1,
+    is the default of ``MADDPG``.
+
+    SB3 adds action noise to the action rescaled to [-1, 1] (then clips), so ``sigma`` is measured in that scale.
+    During ``learn`` SB3 calls the noise once per VecEnv step for each row (through ``VectorizedActionNoise``,
+    which holds one copy per row), so ``k`` counts VecEnv steps: ``k = num_timesteps / n_copies``.
+    ``reset()`` (called at episode ends) does not restart the decay.
+
+    :param mean: mean of the noise, shape (action_dim,)
+    :param sigma: initial standard deviation, shape (action_dim,) or a scalar
+    :param final_sigma: standard deviation the noise decays towards, shape (action_dim,) or a scalar
+    :param decay: factor applied to ``sigma_k - final_sigma`` at each call, in (0, 1]
+    :param dtype: dtype of the noise
+    """
+
+    def __init__(
+        self,
+        mean: np.ndarray,
+        sigma: np.ndarray | float = 1.0,
+        final_sigma: np.ndarray | float = 0.1,
+        decay: float = 0.9998,
+        dtype: npt.DTypeLike = np.float32,
+    ) -> None:
+        if not 0.0 < decay <= 1.0:
+            raise ValueError(f"decay must lie in (0, 1], got {decay}")
+        self._mu = np.asarray(mean, dtype=np.float64)
+        self._sigma = np.broadcast_to(np.asarray(sigma, dtype=np.float64), self._mu.shape).copy()
+        self._final_sigma = np.broadcast_to(np.asarray(final_sigma, dtype=np.float64), self._mu.shape).copy()
+        if np.any(self._sigma < 0) or np.any(self._final_sigma < 0):
+            raise ValueError(f"sigma and final_sigma must be >= 0, got {sigma} and {final_sigma}")
+        self._decay = decay
+        self._dtype = dtype
+        self.n_calls = 0
+        super().__init__()
+
+    @property
+    def current_sigma(self) -> np.ndarray:
+        """The standard deviation the next call will use, shape (action_dim,)."""
+        return self._final_sigma + (self._sigma - self._final_sigma) * self._decay**self.n_calls
+
+    def __call__(self) -> np.ndarray:
+        noise = np.random.normal(self._mu, self.current_sigma).astype(self._dtype)
+        self.n_calls += 1
+        return noise
+
+    def reset(self) -> None:
+        """Episode end: nothing to reset, the decay goes on over the whole training."""
+
+    def __repr__(self) -> str:
+        return (
+            f"DecayingGaussianNoise(mu={self._mu}, sigma={self._sigma}, final_sigma={self._final_sigma}, "
+            f"decay={self._decay}, n_calls={self.n_calls})"
+        )
+
+
+def current_noise_std(action_noise: ActionNoise | None) -> float | None:
+    """
+    Mean standard deviation of an action noise right now, for logging (None if it has no known scale).
+
+    :param action_noise: the algorithm's action noise, possibly wrapped in ``VectorizedActionNoise``
+    :return: the mean standard deviation over action dimensions, or None
+    """
+    if isinstance(action_noise, VectorizedActionNoise):
+        action_noise = action_noise.noises[0]
+    if isinstance(action_noise, DecayingGaussianNoise):
+        return float(np.mean(action_noise.current_sigma))
+    sigma = getattr(action_noise, "_sigma", None)
+    return None if sigma is None else float(np.mean(sigma))

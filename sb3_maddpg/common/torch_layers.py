@@ -1,0 +1,224 @@
+"""Network building blocks: the report's CNN, per-agent encoders and agent-stacked MLPs.
+
+Multi-agent tensors are batch-first with the agent dimension second: observations (B, N, *obs_shape),
+features (B, N, F), actions (B, N, A). "Stacked" modules hold N independent networks and evaluate all of them
+in one call (grouped convolutions, batched matrix products), so the number of kernel launches does not grow with N.
+"""
+
+import math
+from typing import Any, ClassVar
+
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.preprocessing import preprocess_obs
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+from torch import nn
+
+
+class ReportCNN(BaseFeaturesExtractor):
+    """
+    The report's encoder: Conv(C->16), Conv(16->32), Conv(32->64), each 3x3 with stride 2 and no padding,
+    each followed by ReLU, then BatchNorm over the 64 channels, then flatten.
+    The flatten size comes from one dummy forward pass (64 * 9 * 9 = 5184 for 80x80 inputs, 64 for 16x16).
+
+    With ``n_agents > 1`` the module holds ``n_agents`` independent copies of this encoder as grouped
+    convolutions (``groups=n_agents``) and a BatchNorm over ``n_agents * 64`` channels: every copy has its own weights
+    and its own running statistics, exactly as separate modules would, but all agents are encoded in one pass.
+
+    :param observation_space: a channel-first Box of shape (C, H, W) with H, W >= 15
+    :param n_agents: number of independent encoders evaluated together; input (B, n_agents, C, H, W) when > 1
+    :param normalized_image: accepted for compatibility with SB3's image extractors; unused
+        (images are scaled to [0, 1] before the extractor when ``normalize_images=True``)
+    """
+
+    stacks_agents: ClassVar[bool] = True
+
+    def __init__(self, observation_space: spaces.Box, n_agents: int = 1, normalized_image: bool = False) -> None:
+        if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 3:
+            raise ValueError(
+                "ReportCNN accepts a channel-first image Box of shape (C, H, W), "
+                f"got {observation_space}; use MlpPolicy for vector observations"
+            )
+        n_channels, height, width = observation_space.shape
+        if min(height, width) < 15:
+            raise ValueError(
+                f"ReportCNN needs images of at least 15x15 pixels (three 3x3 stride-2 convolutions), got {height}x{width}"
+            )
+        super().__init__(observation_space, features_dim=1)
+        self.n_agents = n_agents
+        g = n_agents
+        self.cnn = nn.Sequential(
+            nn.Conv2d(g * n_channels, g * 16, kernel_size=3, stride=2, groups=g),
+            nn.ReLU(),
+            nn.Conv2d(g * 16, g * 32, kernel_size=3, stride=2, groups=g),
+            nn.ReLU(),
+            nn.Conv2d(g * 32, g * 64, kernel_size=3, stride=2, groups=g),
+            nn.ReLU(),
+            nn.BatchNorm2d(g * 64),
+        )
+        # Flatten size per agent from one dummy pass (eval mode so the running statistics stay untouched)
+        self.cnn.eval()
+        with th.no_grad():
+            dummy = th.zeros(1, g * n_channels, height, width)
+            self._features_dim = self.cnn(dummy).numel() // g
+        self.cnn.train()
+
+    def forward(self, observations: th.Tensor) -> th.Tensor:
+        """
+        :param observations: (B, C, H, W) when ``n_agents == 1``, otherwise (B, n_agents, C, H, W)
+        :return: features (B, F) when ``n_agents == 1`` and the input is 4-D, otherwise (B, n_agents, F)
+        """
+        if observations.dim() == 4:
+            return self.cnn(observations).flatten(1)
+        batch_size = observations.shape[0]
+        # (B, N, C, H, W) -> (B, N*C, H, W): group g of the convolutions reads agent g's channels
+        out = self.cnn(observations.flatten(1, 2))
+        return out.view(batch_size, self.n_agents, -1)
+
+
+class MultiAgentFeatures(nn.Module):
+    """
+    Encodes every agent's observation with that agent's features extractor: (B, N, *obs) -> (B, N, F).
+
+    How the N extractors are held depends on the extractor class:
+
+    - ``shared=True``: one extractor applied to all agents (the batch and agent dimensions are folded together);
+    - an extractor class with ``stacks_agents = True`` (such as ``ReportCNN``): one module built with
+      ``n_agents=N`` that encodes all agents in one pass;
+    - a stateless extractor (no parameters or buffers, e.g. ``FlattenExtractor``): one instance shared, as copies
+      would be identical;
+    - any other ``BaseFeaturesExtractor``: N instances called in a loop over agents (still N passes, not N^2).
+
+    Observations are preprocessed as in SB3 (images divided by 255 when ``normalize_images``).
+
+    :param observation_space: one agent's observation space
+    :param n_agents: number of agents N
+    :param features_extractor_class: SB3 features extractor class
+    :param features_extractor_kwargs: keyword arguments of the extractor
+    :param normalize_images: whether to divide image observations by 255
+    :param shared: one extractor for all agents
+    """
+
+    def __init__(
+        self,
+        observation_space: spaces.Space,
+        n_agents: int,
+        features_extractor_class: type[BaseFeaturesExtractor],
+        features_extractor_kwargs: dict[str, Any] | None = None,
+        normalize_images: bool = True,
+        shared: bool = False,
+    ) -> None:
+        super().__init__()
+        kwargs = features_extractor_kwargs or {}
+        self.observation_space = observation_space
+        self.n_agents = n_agents
+        self.normalize_images = normalize_images
+        self.extractors = nn.ModuleList()
+        if shared:
+            self.mode = "shared"
+            self.extractors.append(features_extractor_class(observation_space, **kwargs))
+        elif getattr(features_extractor_class, "stacks_agents", False):
+            self.mode = "stacked"
+            self.extractors.append(features_extractor_class(observation_space, n_agents=n_agents, **kwargs))
+        else:
+            first = features_extractor_class(observation_space, **kwargs)
+            stateless = not any(True for _ in first.parameters()) and not any(True for _ in first.buffers())
+            self.mode = "shared" if stateless else "loop"
+            self.extractors.append(first)
+            if not stateless:
+                self.extractors.extend(features_extractor_class(observation_space, **kwargs) for _ in range(n_agents - 1))
+        self.features_dim: int = self.extractors[0].features_dim
+
+    def forward(self, observations: th.Tensor) -> th.Tensor:
+        """
+        :param observations: (B, N, *obs_shape), raw (e.g. uint8 images)
+        :return: features (B, N, F)
+        """
+        obs = preprocess_obs(observations, self.observation_space, normalize_images=self.normalize_images)
+        assert isinstance(obs, th.Tensor)
+        batch_size, n_agents = obs.shape[:2]
+        if self.mode == "shared":
+            return self.extractors[0](obs.flatten(0, 1)).view(batch_size, n_agents, -1)
+        if self.mode == "stacked":
+            return self.extractors[0](obs)
+        return th.stack([extractor(obs[:, i]) for i, extractor in enumerate(self.extractors)], dim=1)
+
+
+class BatchedLinear(nn.Module):
+    """
+    ``n_models`` independent linear layers evaluated with one batched matrix product:
+    (B, n_models, in_features) -> (B, n_models, out_features). Each model is initialised like ``nn.Linear``.
+
+    :param n_models: number of independent layers
+    :param in_features: input size
+    :param out_features: output size
+    """
+
+    def __init__(self, n_models: int, in_features: int, out_features: int) -> None:
+        super().__init__()
+        self.n_models = n_models
+        self.in_features = in_features
+        self.out_features = out_features
+        self.weight = nn.Parameter(th.empty(n_models, in_features, out_features))
+        self.bias = nn.Parameter(th.empty(n_models, out_features))
+        # nn.Linear's default initialisation, U(-1/sqrt(fan_in), 1/sqrt(fan_in)), for weights and biases
+        bound = 1.0 / math.sqrt(in_features) if in_features > 0 else 0.0
+        nn.init.uniform_(self.weight, -bound, bound)
+        nn.init.uniform_(self.bias, -bound, bound)
+
+    def forward(self, x: th.Tensor) -> th.Tensor:
+        """
+        :param x: (B, n_models, in_features)
+        :return: (B, n_models, out_features)
+        """
+        # (n_models, B, in) @ (n_models, in, out) + (n_models, 1, out) -> (n_models, B, out)
+        out = th.baddbmm(self.bias.unsqueeze(1), x.transpose(0, 1), self.weight)
+        return out.transpose(0, 1)
+
+    def extra_repr(self) -> str:
+        return f"n_models={self.n_models}, in_features={self.in_features}, out_features={self.out_features}"
+
+
+class BatchedMlp(nn.Module):
+    """
+    ``n_models`` independent MLPs (hidden layers ``net_arch``, ``activation_fn`` between layers, optional tanh at
+    the end) evaluated together: (B, n_models, input_dim) -> (B, n_models, output_dim).
+    With ``n_models=1`` and an input of shape (B, M, input_dim), M > 1, the single MLP is applied to all M slots.
+
+    :param n_models: number of independent MLPs
+    :param input_dim: input size
+    :param output_dim: output size
+    :param net_arch: hidden layer sizes
+    :param activation_fn: activation between layers
+    :param squash_output: apply tanh to the output
+    """
+
+    def __init__(
+        self,
+        n_models: int,
+        input_dim: int,
+        output_dim: int,
+        net_arch: list[int],
+        activation_fn: type[nn.Module] = nn.ReLU,
+        squash_output: bool = False,
+    ) -> None:
+        super().__init__()
+        self.n_models = n_models
+        layers: list[nn.Module] = []
+        sizes = [input_dim, *net_arch]
+        for in_size, out_size in zip(sizes[:-1], sizes[1:]):
+            layers += [BatchedLinear(n_models, in_size, out_size), activation_fn()]
+        layers.append(BatchedLinear(n_models, sizes[-1], output_dim))
+        if squash_output:
+            layers.append(nn.Tanh())
+        self.net = nn.Sequential(*layers)
+
+    def forward(self, x: th.Tensor) -> th.Tensor:
+        """
+        :param x: (B, n_models, input_dim), or (B, M, input_dim) when ``n_models == 1``
+        :return: (B, n_models or M, output_dim)
+        """
+        if self.n_models == 1 and x.shape[1] != 1:
+            batch_size, n_slots = x.shape[:2]
+            return self.net(x.reshape(batch_size * n_slots, 1, -1)).view(batch_size, n_slots, -1)
+        return self.net(x)

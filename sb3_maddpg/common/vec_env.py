@@ -1,0 +1,245 @@
+"""From a PettingZoo ParallelEnv to an SB3 VecEnv with one row per agent and environment copy."""
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import supersuit as ss
+from gymnasium import spaces
+from pettingzoo.utils.env import ParallelEnv
+from pettingzoo.utils.wrappers import BaseParallelWrapper
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
+from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
+
+
+def check_multiagent_spaces(parallel_env: ParallelEnv) -> tuple[spaces.Box, spaces.Box]:
+    """
+    Check that every agent of a ParallelEnv has the same Box observation space and the same Box action space.
+
+    :param parallel_env: the environment
+    :return: the shared observation space and action space
+    """
+    agents = list(getattr(parallel_env, "possible_agents", []))
+    if not agents:
+        raise ValueError("the ParallelEnv must list its agents in `possible_agents` (at least one)")
+    obs_space = parallel_env.observation_space(agents[0])
+    act_space = parallel_env.action_space(agents[0])
+    if not isinstance(obs_space, spaces.Box):
+        raise TypeError(f"MADDPG accepts Box observation spaces (vectors or images), got {obs_space} for {agents[0]!r}")
+    if not isinstance(act_space, spaces.Box):
+        raise TypeError(f"MADDPG accepts Box (continuous) action spaces, got {act_space} for {agents[0]!r}")
+    for agent in agents[1:]:
+        if parallel_env.observation_space(agent) != obs_space or parallel_env.action_space(agent) != act_space:
+            raise ValueError(
+                "all agents must share one observation space and one action space; "
+                f"{agents[0]!r} has {obs_space} / {act_space} but {agent!r} has "
+                f"{parallel_env.observation_space(agent)} / {parallel_env.action_space(agent)}"
+            )
+    return obs_space, act_space
+
+
+class _SeparateResetInfos(BaseParallelWrapper):
+    """
+    Hands SuperSuit empty reset infos and keeps the real ones in ``last_reset_infos``.
+
+    At an automatic reset SuperSuit merges the reset infos into the final step's infos, so keys present in both
+    (e.g. ``coverage``) would report the new episode's first value instead of the finished episode's last one.
+    ``MultiAgentVecEnv`` puts the reset infos in ``reset_infos`` instead, as SB3's own VecEnvs do.
+
+    :param env: the ParallelEnv
+    """
+
+    def __init__(self, env: ParallelEnv) -> None:
+        super().__init__(env)
+        self.last_reset_infos: dict[str, dict[str, Any]] = {}
+
+    @property
+    def possible_agents(self) -> list[str]:  # type: ignore[override]
+        return self.env.possible_agents
+
+    @property
+    def agents(self) -> list[str]:  # type: ignore[override]
+        return self.env.agents
+
+    @property
+    def metadata(self) -> dict[str, Any]:  # type: ignore[override]
+        return self.env.metadata
+
+    @property
+    def render_mode(self) -> str | None:  # type: ignore[override]
+        return getattr(self.env, "render_mode", None)
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        observations, infos = self.env.reset(seed=seed, options=options)
+        self.last_reset_infos = infos
+        return observations, {agent: {} for agent in observations}
+
+
+class MultiAgentVecEnv(VecEnvWrapper):
+    """
+    SuperSuit's SB3 VecEnv of a PettingZoo ParallelEnv, with what it lacks under gymnasium 1.x.
+
+    Rows are agent-major inside each copy: row = copy * n_agents + agent. On top of SuperSuit this wrapper
+
+    - passes seeds to the copies at the next reset: ``seed(s)`` gives copy c the seed ``s + c``
+      (and a random base seed when none was set, so copies never start as clones of each other);
+    - reports ``done`` for every row of a copy when that copy's joint episode ends (SuperSuit resets a copy only
+      when all its agents are done), with ``terminal_observation`` and, where the episode was truncated and not
+      terminated, ``TimeLimit.truncated = True`` in the infos;
+    - keeps the final step's infos at an episode end and puts the infos of the automatic reset in ``reset_infos``
+      (SuperSuit would merge them, the reset's values overwriting the final step's);
+    - adds SB3's episode statistics once per joint episode, in the info of the copy's agent 0 row:
+      ``{"r": team return (sum over agents and steps), "l": joint steps, "t": seconds since creation}``.
+
+    It reads terminations and truncations from the gymnasium-level vector env inside SuperSuit's SB3 wrapper,
+    because that wrapper merges them into ``dones`` and ignores seeds.
+
+    :param venv: the VecEnv returned by ``supersuit.concat_vec_envs_v1(..., base_class="stable_baselines3")``
+    :param possible_agents: agent names, in row order inside a copy
+    """
+
+    def __init__(self, venv: VecEnv, possible_agents: list[str]) -> None:
+        self.possible_agents = list(possible_agents)
+        self.n_agents = len(self.possible_agents)
+        if venv.num_envs % self.n_agents != 0:
+            raise ValueError(f"the VecEnv has {venv.num_envs} rows, not a multiple of the {self.n_agents} agents")
+        self.n_copies = venv.num_envs // self.n_agents
+        super().__init__(venv)
+        self._base_seed: int | None = None
+        self._episode_returns = np.zeros(self.n_copies, dtype=np.float64)
+        self._episode_lengths = np.zeros(self.n_copies, dtype=np.int64)
+        self._t_start = time.time()
+
+    @property
+    def _gym_vec_env(self) -> Any:
+        # SuperSuit's SB3VecEnvWrapper keeps the gymnasium-level vector env as `.venv`
+        return self.venv.venv  # type: ignore[attr-defined]
+
+    @property
+    def parallel_envs(self) -> list[ParallelEnv]:
+        """The PettingZoo ParallelEnv of each copy (copy c drives rows c * n_agents ... (c + 1) * n_agents - 1)."""
+        return [markov_env.par_env.env for markov_env in self._gym_vec_env.vec_envs]
+
+    def _copy_reset_infos(self, copy: int) -> list[dict[str, Any]]:
+        infos = self._gym_vec_env.vec_envs[copy].par_env.last_reset_infos
+        return [dict(infos.get(agent, {})) for agent in self.possible_agents]
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        """Attribute of the ParallelEnv behind each row (rows of one copy share their env)."""
+        envs = self.parallel_envs
+        return [getattr(envs[row // self.n_agents], attr_name) for row in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        """Set an attribute of the ParallelEnv behind the given rows (once per copy)."""
+        envs = self.parallel_envs
+        for copy in sorted({row // self.n_agents for row in self._get_indices(indices)}):
+            setattr(envs[copy], attr_name, value)
+
+    def env_method(self, method_name: str, *method_args, indices: VecEnvIndices = None, **method_kwargs) -> list[Any]:
+        """Call a method of the ParallelEnv behind each row (once per copy; the result is repeated for its rows)."""
+        envs = self.parallel_envs
+        rows = list(self._get_indices(indices))
+        results = {
+            copy: getattr(envs[copy], method_name)(*method_args, **method_kwargs)
+            for copy in sorted({row // self.n_agents for row in rows})
+        }
+        return [results[row // self.n_agents] for row in rows]
+
+    def env_is_wrapped(self, wrapper_class: type, indices: VecEnvIndices = None) -> list[bool]:
+        return [False for _ in self._get_indices(indices)]
+
+    def seed(self, seed: int | None = None) -> list[int | None]:
+        """
+        Seed the copies at the next reset: copy c gets ``seed + c``.
+
+        :param seed: base seed; a random one when None
+        :return: the seed of each row
+        """
+        if seed is None:
+            seed = int(np.random.randint(0, np.iinfo(np.uint32).max, dtype=np.uint32))
+        self._base_seed = int(seed)
+        return [self._base_seed + row // self.n_agents for row in range(self.num_envs)]
+
+    def set_options(self, options: list[dict] | dict | None = None) -> None:
+        """Options for the next reset (the first copy's options are passed to every copy)."""
+        VecEnv.set_options(self, options)
+
+    def reset(self) -> np.ndarray:
+        if self._base_seed is None:
+            self.seed(None)
+        options = self._options[0] if self._options and self._options[0] else None
+        obs, _ = self._gym_vec_env.reset(seed=self._base_seed, options=options)
+        self._base_seed = None
+        self._reset_options()
+        self.reset_infos = [info for copy in range(self.n_copies) for info in self._copy_reset_infos(copy)]
+        self._episode_returns[:] = 0.0
+        self._episode_lengths[:] = 0
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._gym_vec_env.step_async(actions)
+
+    def step_wait(self) -> VecEnvStepReturn:
+        obs, rewards, terminations, truncations, raw_infos = self._gym_vec_env.step_wait()
+        # Own dict per row: an env may share one info dict between agents
+        infos = [dict(info) for info in raw_infos]
+        n_agents = self.n_agents
+        terminations = np.asarray(terminations, dtype=bool).reshape(self.n_copies, n_agents)
+        truncations = np.asarray(truncations, dtype=bool).reshape(self.n_copies, n_agents)
+        copy_done = (terminations | truncations).all(axis=1)
+        rewards = np.asarray(rewards, dtype=np.float32)
+        self._episode_returns += rewards.reshape(self.n_copies, n_agents).sum(axis=1)
+        self._episode_lengths += 1
+        for copy in np.flatnonzero(copy_done):
+            for agent in range(n_agents):
+                row = copy * n_agents + agent
+                infos[row]["TimeLimit.truncated"] = bool(truncations[copy, agent] and not terminations[copy, agent])
+            infos[copy * n_agents]["episode"] = {
+                "r": float(self._episode_returns[copy]),
+                "l": int(self._episode_lengths[copy]),
+                "t": round(time.time() - self._t_start, 6),
+            }
+            self._episode_returns[copy] = 0.0
+            self._episode_lengths[copy] = 0
+            self.reset_infos[copy * n_agents : (copy + 1) * n_agents] = self._copy_reset_infos(copy)
+        dones = np.repeat(copy_done, n_agents)
+        return obs, rewards, dones, infos
+
+
+def make_multiagent_vec_env(
+    env_fn: Callable[..., ParallelEnv],
+    n_envs: int = 1,
+    seed: int | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+) -> MultiAgentVecEnv:
+    """
+    Build an SB3 VecEnv from a PettingZoo ParallelEnv with SuperSuit
+    (``pettingzoo_env_to_vec_env_v1`` then ``concat_vec_envs_v1(..., base_class="stable_baselines3")``).
+
+    The VecEnv has ``n_envs * n_agents`` rows, agent-major inside each copy (row = copy * n_agents + agent), and the
+    attributes ``n_agents``, ``n_copies`` and ``possible_agents``. See ``MultiAgentVecEnv`` for seeding, infos and
+    episode statistics. All agents must share one Box observation space and one Box action space.
+
+    :param env_fn: function returning a PettingZoo ParallelEnv, e.g. ``uav_coverage_v0.parallel_env``
+    :param n_envs: number of environment copies
+    :param seed: base seed; copy c is reset with ``seed + c`` at the first reset
+    :param env_kwargs: keyword arguments of ``env_fn``
+    :return: the VecEnv
+    """
+    if not isinstance(n_envs, int | np.integer) or n_envs < 1:
+        raise ValueError(f"n_envs must be an integer >= 1, got {n_envs!r}")
+    parallel_env = env_fn(**(env_kwargs or {}))
+    if not isinstance(parallel_env, ParallelEnv):
+        raise TypeError(
+            f"env_fn must return a PettingZoo ParallelEnv, got {type(parallel_env).__name__}; "
+            "for an AEC env use pettingzoo.utils.conversions.aec_to_parallel"
+        )
+    check_multiagent_spaces(parallel_env)
+    possible_agents = list(parallel_env.possible_agents)
+    markov_env = ss.pettingzoo_env_to_vec_env_v1(_SeparateResetInfos(parallel_env))
+    sb3_env = ss.concat_vec_envs_v1(markov_env, int(n_envs), num_cpus=0, base_class="stable_baselines3")
+    venv = MultiAgentVecEnv(sb3_env, possible_agents)
+    if seed is not None:
+        venv.seed(seed)
+    return venv

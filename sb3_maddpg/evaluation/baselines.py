@@ -1,0 +1,206 @@
+"""
+Controllers that act in a ``uav_coverage_v0`` ParallelEnv: a trained model and two baselines that need no training.
+
+A controller is reset at the start of every episode with the env (so it may read the simulation, ``env.core``) and
+returns one action per live agent at each step. Actions are in [0, 1]^2: direction theta = 2 pi a0, distance
+rho * l_max with rho = a1 (SPEC §1.4).
+"""
+
+from typing import Any, Protocol
+
+import numpy as np
+from pettingzoo import ParallelEnv
+
+
+class Controller(Protocol):
+    """What :func:`~sb3_maddpg.evaluation.evaluate.run_episode` needs from a policy."""
+
+    name: str
+
+    def reset(self, env: ParallelEnv, seed: int | None = None) -> None:
+        """
+        Called after ``env.reset`` at the start of each episode.
+
+        :param env: the env, already reset
+        :param seed: the episode's seed, for controllers with randomness
+        """
+
+    def act(self, observations: dict[str, np.ndarray], env: ParallelEnv) -> dict[str, np.ndarray]:
+        """
+        :param observations: the live agents' observations
+        :param env: the env
+        :return: one action per live agent
+        """
+
+
+class RandomController:
+    """
+    Uniform random actions in [0, 1]^2 for every agent (random direction, random distance): the lower baseline.
+
+    :param name: label in tables and figures
+    """
+
+    def __init__(self, name: str = "random") -> None:
+        self.name = name
+        self.rng = np.random.default_rng()
+
+    def reset(self, env: ParallelEnv, seed: int | None = None) -> None:
+        self.rng = np.random.default_rng(seed)
+
+    def act(self, observations: dict[str, np.ndarray], env: ParallelEnv) -> dict[str, np.ndarray]:
+        return {agent: self.rng.random(2, dtype=np.float64).astype(np.float32) for agent in observations}
+
+
+def greedy_placement(
+    pois: np.ndarray,
+    n_uavs: int,
+    map_size: int,
+    coverage_range: float,
+    comm_range: float | None = None,
+    link_margin: float = 0.05,
+) -> np.ndarray:
+    """
+    Hover spots chosen greedily for maximum coverage: among the centres of the map's cells, pick one spot at a time
+    that covers the most PoIs not yet covered by the spots already chosen (ties: the first in the lattice order).
+    When ``comm_range`` is given, each spot after the first is taken, where possible, within ``comm_range`` of an
+    already chosen spot, so that the UAVs hovering there stay connected.
+
+    Greedy selection is the classic (1 - 1/e)-approximation of maximum coverage.
+
+    :param pois: (K, 2) PoI coordinates
+    :param n_uavs: number of spots to choose
+    :param map_size: L, the area is [0, L)^2
+    :param coverage_range: R0, a PoI within R0 of a spot is covered
+    :param comm_range: R, the link range, or None to ignore connectivity
+    :param link_margin: linked spots are at most ``comm_range - link_margin`` apart, so that the float rounding of
+        the flights there cannot put two UAVs just out of range
+    :return: (n_uavs, 2) spots
+    """
+    centres = np.arange(map_size, dtype=np.float64) + 0.5
+    xx, yy = np.meshgrid(centres, centres, indexing="xy")
+    candidates = np.stack([xx.ravel(), yy.ravel()], axis=1)  # (C, 2)
+    diff = candidates[:, None, :] - np.asarray(pois, dtype=np.float64)[None, :, :]
+    covers = np.einsum("ckd,ckd->ck", diff, diff) <= coverage_range**2  # (C, K)
+
+    chosen: list[int] = []
+    covered = np.zeros(covers.shape[1], dtype=bool)
+    reachable = np.ones(len(candidates), dtype=bool)
+    for _ in range(n_uavs):
+        gains = (covers & ~covered[None, :]).sum(axis=1)
+        if comm_range is not None and chosen:
+            # Keep the team connected when that costs nothing in feasibility: restrict to spots in range of the team.
+            allowed = reachable.copy()
+            if not allowed.any():
+                allowed[:] = True
+            gains = np.where(allowed, gains, -1)
+        best = int(np.argmax(gains))
+        chosen.append(best)
+        covered |= covers[best]
+        if comm_range is not None:
+            to_best = candidates - candidates[best]
+            in_range = np.einsum("cd,cd->c", to_best, to_best) <= (comm_range - link_margin) ** 2
+            reachable = in_range if len(chosen) == 1 else (reachable | in_range)
+    return candidates[chosen]
+
+
+def assign_targets(positions: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """
+    Give each UAV a distinct target, shortest pairs first (a greedy matching; N is small).
+
+    :param positions: (N, 2) UAV positions
+    :param targets: (N, 2) spots
+    :return: (N, 2) the target of each UAV
+    """
+    diff = positions[:, None, :] - targets[None, :, :]
+    distances = np.sqrt(np.einsum("ijd,ijd->ij", diff, diff))
+    assigned = np.full(len(positions), -1)
+    free_uav = np.ones(len(positions), dtype=bool)
+    free_target = np.ones(len(targets), dtype=bool)
+    for flat in np.argsort(distances, axis=None, kind="stable"):
+        uav, target = divmod(int(flat), len(targets))
+        if free_uav[uav] and free_target[target]:
+            assigned[uav] = target
+            free_uav[uav] = False
+            free_target[target] = False
+    return targets[assigned]
+
+
+def fly_to(positions: np.ndarray, targets: np.ndarray, max_distance: float, tolerance: float = 1e-3) -> np.ndarray:
+    """
+    Actions that fly each UAV straight toward its target, at most ``max_distance`` per step, and hover once there.
+
+    :param positions: (N, 2) positions
+    :param targets: (N, 2) targets
+    :param max_distance: l_max
+    :param tolerance: distance under which a UAV hovers (rho = 0) instead of correcting float rounding
+    :return: (N, 2) float32 actions in [0, 1]^2: (theta / 2 pi, rho)
+    """
+    delta = targets - positions
+    distance = np.hypot(delta[:, 0], delta[:, 1])
+    direction = np.mod(np.arctan2(delta[:, 1], delta[:, 0]) / (2.0 * np.pi), 1.0)
+    rho = np.where(distance > tolerance, np.minimum(distance / max_distance, 1.0), 0.0)
+    return np.stack([direction, rho], axis=1).astype(np.float32)
+
+
+class GreedyStaticController:
+    """
+    The static placement baseline: at reset, choose N hover spots greedily for maximum coverage
+    (:func:`greedy_placement`), give each UAV the nearest free spot, fly straight there and hover.
+
+    It reads the simulation (``env.core``: PoIs, positions, ranges), which a learned policy does not see.
+
+    :param name: label in tables and figures
+    :param connected: keep the spots within communication range of each other where possible
+    """
+
+    def __init__(self, name: str = "greedy_static", connected: bool = True) -> None:
+        self.name = name
+        self.connected = connected
+        self.targets: np.ndarray | None = None
+
+    def reset(self, env: ParallelEnv, seed: int | None = None) -> None:
+        core = _core(env)
+        spots = greedy_placement(
+            core.pois, core.n_uavs, core.map_size, core.coverage_range, core.comm_range if self.connected else None
+        )
+        self.targets = assign_targets(core.positions, spots)
+
+    def act(self, observations: dict[str, np.ndarray], env: ParallelEnv) -> dict[str, np.ndarray]:
+        if self.targets is None:
+            raise RuntimeError("GreedyStaticController.reset() must be called at the start of each episode")
+        core = _core(env)
+        actions = fly_to(core.positions, self.targets, core.max_distance)
+        return {agent: actions[env.possible_agents.index(agent)] for agent in observations}
+
+
+class ModelController:
+    """
+    A trained multi-agent model (MADDPG or any SB3 model whose ``predict`` takes one row per agent, in the order
+    of ``env.possible_agents``), acting deterministically by default.
+
+    :param model: the model
+    :param name: label in tables and figures
+    :param deterministic: whether to act without exploration noise
+    """
+
+    def __init__(self, model: Any, name: str = "maddpg", deterministic: bool = True) -> None:
+        self.model = model
+        self.name = name
+        self.deterministic = deterministic
+
+    def reset(self, env: ParallelEnv, seed: int | None = None) -> None:
+        pass
+
+    def act(self, observations: dict[str, np.ndarray], env: ParallelEnv) -> dict[str, np.ndarray]:
+        # Row r of the batch goes to actor r mod N: stack in the fixed agent order, not in the dict's order.
+        agents = [agent for agent in env.possible_agents if agent in observations]
+        batch = np.stack([observations[agent] for agent in agents])
+        actions, _ = self.model.predict(batch, deterministic=self.deterministic)
+        return {agent: np.asarray(action, dtype=np.float32) for agent, action in zip(agents, actions, strict=True)}
+
+
+def _core(env: ParallelEnv) -> Any:
+    core = getattr(env, "core", None) or getattr(getattr(env, "unwrapped", None), "core", None)
+    if core is None:
+        raise TypeError(f"{type(env).__name__} has no simulation core (`.core`): the baselines need uav_coverage_v0")
+    return core

@@ -1,0 +1,223 @@
+"""Run controllers for whole episodes of ``uav_coverage_v0`` and summarise the episode-end metrics."""
+
+import csv
+import json
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pettingzoo import ParallelEnv
+
+from sb3_maddpg.evaluation.baselines import Controller
+
+# The report's metrics at the last step of an episode (SPEC §1.5): c_T, f_T, e_T, eta_T.
+METRICS: tuple[str, ...] = ("coverage", "fairness", "energy", "energy_efficiency")
+METRIC_SYMBOLS: dict[str, str] = {"coverage": "c_T", "fairness": "f_T", "energy": "e_T", "energy_efficiency": "eta_T"}
+# Also kept per episode (team totals), not part of the summary table.
+COUNTS: tuple[str, ...] = ("wall_hits", "disconnections")
+
+
+@dataclass
+class EpisodeRecord:
+    """
+    What one recorded episode leaves for the figures.
+
+    :param frames: rendered RGB frames (every ``frame_every`` steps and the last)
+    :param state_images: step -> global state image (3, S, S) uint8 at that step (0 is after reset)
+    :param render_frames: step -> rendered RGB frame at that step
+    :param core: the simulation at the end of the episode (for the coverage heat map)
+    """
+
+    frames: list[np.ndarray] = field(default_factory=list)
+    state_images: dict[int, np.ndarray] = field(default_factory=dict)
+    render_frames: dict[int, np.ndarray] = field(default_factory=dict)
+    core: Any = None
+
+
+def run_episode(
+    env: ParallelEnv,
+    controller: Controller,
+    seed: int | None = None,
+    record: EpisodeRecord | None = None,
+    state_steps: Sequence[int] = (),
+    frame_every: int = 1,
+) -> dict[str, float]:
+    """
+    Play one episode to its end.
+
+    :param env: a ``uav_coverage_v0`` ParallelEnv (with ``render_mode="rgb_array"`` to record frames)
+    :param controller: what acts
+    :param seed: the episode's seed (start positions with ``start="random"``)
+    :param record: if given, filled with frames, state images and the final simulation
+    :param state_steps: steps at which to keep the state image and the rendered frame (0 = after reset)
+    :param frame_every: keep one rendered frame every this many steps
+    :return: the episode-end metrics (``coverage``, ``fairness``, ``energy``, ``energy_efficiency``), the team's
+        ``wall_hits`` and ``disconnections``, the team ``return`` (sum over agents and steps) and ``length``
+    """
+    observations, infos = env.reset(seed=seed)
+    controller.reset(env, seed=seed)
+    wanted = set(state_steps)
+    team_return = 0.0
+    step = 0
+
+    def keep(step: int, last: bool = False) -> None:
+        if record is None:
+            return
+        frame = None
+        if step % frame_every == 0 or last or step in wanted:
+            frame = env.render()
+        if frame is not None and (step % frame_every == 0 or last):
+            record.frames.append(frame)
+        if step in wanted:
+            record.state_images[step] = env.state()
+            if frame is not None:
+                record.render_frames[step] = frame
+
+    keep(0)
+    while env.agents:
+        actions = controller.act(observations, env)
+        observations, rewards, terminations, truncations, infos = env.step(actions)
+        team_return += float(sum(rewards.values()))
+        step += 1
+        keep(step, last=not env.agents)
+    if record is not None:
+        record.core = getattr(env, "core", None)
+
+    last_infos = list(infos.values())
+    metrics = {key: float(last_infos[0][key]) for key in METRICS}
+    for key in COUNTS:
+        metrics[key] = float(sum(info.get(key, 0) for info in last_infos))
+    metrics["return"] = team_return
+    metrics["length"] = float(step)
+    return metrics
+
+
+def evaluate_controllers(
+    make_env: Callable[[], ParallelEnv],
+    controllers: Sequence[Controller],
+    n_episodes: int,
+    seed: int = 0,
+    record_controller: str | None = None,
+    state_steps: Sequence[int] = (),
+    frame_every: int = 1,
+    verbose: int = 0,
+) -> tuple[dict[str, list[dict[str, float]]], EpisodeRecord | None]:
+    """
+    Run every controller for the same ``n_episodes`` episodes: episode ``e`` uses seed ``seed + e`` for all of them,
+    so with ``start="random"`` they start from the same positions (a paired comparison).
+
+    :param make_env: builds the env (one per controller)
+    :param controllers: what to evaluate
+    :param n_episodes: episodes per controller
+    :param seed: seed of the first episode
+    :param record_controller: name of the controller whose first episode is recorded for the figures
+    :param state_steps: steps of the recorded episode whose state images are kept
+    :param frame_every: keep one GIF frame every this many steps of the recorded episode
+    :param verbose: 1 to print one line per episode
+    :return: controller name -> one metrics dict per episode, and the recorded episode (None if none was asked)
+    """
+    if n_episodes < 1:
+        raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
+    results: dict[str, list[dict[str, float]]] = {}
+    record: EpisodeRecord | None = None
+    for controller in controllers:
+        env = make_env()
+        episodes = []
+        try:
+            for episode in range(n_episodes):
+                this_record = None
+                if record is None and controller.name == record_controller:
+                    this_record = record = EpisodeRecord()
+                metrics = run_episode(env, controller, seed + episode, this_record, state_steps, frame_every)
+                episodes.append(metrics)
+                if verbose:
+                    values = "  ".join(f"{METRIC_SYMBOLS[key]}={metrics[key]:.4f}" for key in METRICS)
+                    print(f"{controller.name} episode {episode + 1}/{n_episodes}: {values}")
+        finally:
+            env.close()
+        results[controller.name] = episodes
+    return results, record
+
+
+def summarize(results: dict[str, list[dict[str, float]]]) -> list[dict[str, Any]]:
+    """
+    Mean and standard deviation of each metric over the episodes.
+
+    :param results: controller name -> per-episode metrics
+    :return: one row per controller: ``method``, ``episodes``, and ``<metric>_mean`` / ``<metric>_std``
+    """
+    rows = []
+    for name, episodes in results.items():
+        row: dict[str, Any] = {"method": name, "episodes": len(episodes)}
+        for key in (*METRICS, *COUNTS):
+            values = np.array([episode[key] for episode in episodes], dtype=np.float64)
+            row[f"{key}_mean"] = float(values.mean())
+            row[f"{key}_std"] = float(values.std())
+        rows.append(row)
+    return rows
+
+
+def format_table(summary: Sequence[dict[str, Any]]) -> str:
+    """
+    The summary as a Markdown table of ``mean ± std``.
+
+    :param summary: rows from :func:`summarize`
+    :return: the table
+    """
+    header = ["method", "episodes", *(METRIC_SYMBOLS[key] for key in METRICS)]
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    for row in summary:
+        cells = [str(row["method"]), str(row["episodes"])]
+        cells += [f"{row[f'{key}_mean']:.4f} ± {row[f'{key}_std']:.4f}" for key in METRICS]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def write_results(
+    out_dir: str | os.PathLike,
+    results: dict[str, list[dict[str, float]]],
+    summary: Sequence[dict[str, Any]],
+    metadata: dict[str, Any] | None = None,
+) -> dict[str, Path]:
+    """
+    Write ``results.csv`` (the summary), ``results.json`` (summary, per-episode values and ``metadata``),
+    ``episodes.csv`` (one line per controller and episode) and ``results.md`` (the printed table).
+
+    :param out_dir: output folder (created)
+    :param results: controller name -> per-episode metrics
+    :param summary: rows from :func:`summarize`
+    :param metadata: what produced the results (command, env kwargs, model path, seed)
+    :return: name -> path of each file written
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {name: out / name for name in ("results.csv", "results.json", "episodes.csv", "results.md")}
+
+    with open(paths["results.csv"], "w", newline="") as file:
+        writer = csv.DictWriter(file, fieldnames=list(summary[0]))
+        writer.writeheader()
+        writer.writerows(summary)
+
+    episode_keys = [*METRICS, *COUNTS, "return", "length"]
+    with open(paths["episodes.csv"], "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(["method", "episode", *episode_keys])
+        for name, episodes in results.items():
+            for index, episode in enumerate(episodes):
+                writer.writerow([name, index, *(episode[key] for key in episode_keys)])
+
+    payload = {"metadata": metadata or {}, "summary": list(summary), "episodes": results}
+    paths["results.json"].write_text(json.dumps(payload, indent=2, default=_to_json))
+    paths["results.md"].write_text(format_table(summary) + "\n")
+    return paths
+
+
+def _to_json(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return str(value)

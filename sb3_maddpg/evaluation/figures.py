@@ -1,0 +1,311 @@
+"""
+The report's figures: fairness against coverage, fairness against energy efficiency, each metric against episode
+(from evaluation results or from a training run's logs), state images, the coverage heat map and an episode GIF.
+
+Matplotlib is imported with the Agg backend only when a figure is drawn, so no display is needed.
+"""
+
+import csv
+import glob
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sb3_maddpg.evaluation.evaluate import METRICS, EpisodeRecord
+
+LABELS: dict[str, str] = {
+    "coverage": "coverage $c_T$",
+    "fairness": "fairness $f_T$",
+    "energy": "energy $\\bar{e}_T$",
+    "energy_efficiency": "energy efficiency $\\eta_T$",
+    "wall_hits": "wall hits",
+    "disconnections": "disconnections",
+    "r": "team return",
+}
+
+# One series: metric name -> values, one per episode (plus "x", the episode index or timestep, when not 0..n-1).
+Series = dict[str, np.ndarray]
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def series_from_results(results: dict[str, list[dict[str, float]]]) -> dict[str, Series]:
+    """
+    :param results: controller name -> per-episode metrics (from ``evaluate_controllers``)
+    :return: controller name -> metric name -> values
+    """
+    series = {}
+    for name, episodes in results.items():
+        keys = episodes[0].keys() if episodes else ()
+        series[name] = {key: np.array([episode[key] for episode in episodes], dtype=np.float64) for key in keys}
+    return series
+
+
+def _scatter(series: dict[str, Series], x_key: str, y_key: str, path: str | os.PathLike, title: str) -> Path:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(5.5, 4.5))
+    for name, values in series.items():
+        if x_key in values and y_key in values and len(values[x_key]):
+            ax.scatter(values[x_key], values[y_key], s=14, alpha=0.7, label=name)
+    ax.set_xlabel(LABELS[x_key])
+    ax.set_ylabel(LABELS[y_key])
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    if len(series) > 1:
+        ax.legend(fontsize="small")
+    fig.tight_layout()
+    fig.savefig(os.fspath(path), dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_fairness_vs_coverage(series: dict[str, Series], path: str | os.PathLike, title: str | None = None) -> Path:
+    """
+    Fairness against coverage, one point per episode (the report's figure 6.5).
+
+    :param series: name -> metric -> per-episode values
+    :param path: output image file
+    :param title: figure title
+    :return: the path written
+    """
+    return _scatter(series, "coverage", "fairness", path, title or "Fairness vs coverage (episode end)")
+
+
+def plot_fairness_vs_efficiency(series: dict[str, Series], path: str | os.PathLike, title: str | None = None) -> Path:
+    """
+    Fairness against energy efficiency, one point per episode (the report's figure 6.6).
+
+    :param series: name -> metric -> per-episode values
+    :param path: output image file
+    :param title: figure title
+    :return: the path written
+    """
+    return _scatter(series, "energy_efficiency", "fairness", path, title or "Fairness vs energy efficiency (episode end)")
+
+
+def _moving_average(values: np.ndarray, window: int) -> np.ndarray:
+    if window <= 1 or len(values) < window:
+        return values
+    kernel = np.ones(window) / window
+    return np.convolve(values, kernel, mode="valid")
+
+
+def plot_metrics_vs_episode(
+    series: dict[str, Series],
+    path: str | os.PathLike,
+    metrics: Sequence[str] = METRICS,
+    x_label: str = "episode",
+    window: int = 1,
+    title: str | None = None,
+) -> Path:
+    """
+    Each metric against episode (the report's figure 6.7 for fairness), one panel per metric.
+
+    :param series: name -> metric -> per-episode values (an optional ``"x"`` entry gives the x values)
+    :param path: output image file
+    :param metrics: the metrics to draw, one panel each
+    :param x_label: label of the x axis
+    :param window: moving-average window drawn over the raw values (1: none)
+    :param title: figure title
+    :return: the path written
+    """
+    plt = _pyplot()
+    from matplotlib.ticker import MaxNLocator
+
+    n_cols = 2
+    n_rows = (len(metrics) + n_cols - 1) // n_cols
+    fig, axes = plt.subplots(n_rows, n_cols, figsize=(10, 3.2 * n_rows), squeeze=False)
+    for ax, metric in zip(axes.ravel()[: len(metrics)], metrics, strict=True):
+        for name, values in series.items():
+            if metric not in values or not len(values[metric]):
+                continue
+            y = values[metric]
+            x = values.get("x", np.arange(1, len(y) + 1))
+            smooth = _moving_average(y, window)
+            if smooth is y:
+                ax.plot(x, y, marker="." if len(y) < 60 else None, label=name)
+            else:
+                (line,) = ax.plot(x, y, alpha=0.25)
+                ax.plot(x[window - 1 :], smooth, color=line.get_color(), label=f"{name} (mean of {window})")
+        ax.set_xlabel(x_label)
+        ax.set_ylabel(LABELS.get(metric, metric))
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.grid(alpha=0.3)
+    for ax in axes.ravel()[len(metrics) :]:
+        ax.set_visible(False)
+    handles, labels = axes.ravel()[0].get_legend_handles_labels()
+    if len(labels) > 1 or window > 1:
+        axes.ravel()[0].legend(fontsize="small")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(os.fspath(path), dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def save_episode_figures(record: EpisodeRecord, out_dir: str | os.PathLike, prefix: str = "", fps: int = 10) -> list[Path]:
+    """
+    The figures of one recorded episode: state images and rendered frames at the chosen steps, the coverage heat
+    map at the end, and a GIF of the episode.
+
+    :param record: the recorded episode
+    :param out_dir: output folder (created)
+    :param prefix: file name prefix, e.g. the controller's name and an underscore
+    :param fps: GIF frames per second
+    :return: the paths written
+    """
+    from PIL import Image
+
+    from sb3_maddpg_envs.uav_coverage.plotting import save_coverage_heatmap, save_gif
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for step, state in sorted(record.state_images.items()):
+        path = out / f"{prefix}state_step{step:04d}.png"
+        _save_state_array(state, path)
+        written.append(path)
+    for step, frame in sorted(record.render_frames.items()):
+        path = out / f"{prefix}frame_step{step:04d}.png"
+        Image.fromarray(np.asarray(frame, dtype=np.uint8)).save(path)
+        written.append(path)
+    if record.core is not None:
+        path = out / f"{prefix}coverage_heatmap.png"
+        save_coverage_heatmap(record.core, path)
+        written.append(path)
+    if record.frames:
+        path = out / f"{prefix}episode.gif"
+        save_gif(record.frames, path, fps=fps)
+        written.append(path)
+    return written
+
+
+def _save_state_array(state: np.ndarray, path: Path, scale: int = 4) -> None:
+    """
+    Write a stored global state image as ``save_state_image`` draws the live one: channels (PoIs, UAVs, coverage)
+    as (red, green, blue), each pixel a ``scale`` x ``scale`` square.
+    """
+    from PIL import Image
+
+    rgb = np.transpose(np.asarray(state, dtype=np.uint8), (1, 2, 0))
+    rgb = np.repeat(np.repeat(rgb, scale, axis=0), scale, axis=1)
+    Image.fromarray(np.ascontiguousarray(rgb)).save(path)
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# Training logs
+# ---------------------------------------------------------------------------------------------------------------------
+def find_monitor_files(log_path: str | os.PathLike) -> list[Path]:
+    """
+    :param log_path: a ``monitor.csv`` file, or a folder searched recursively (e.g. an RL Zoo run folder)
+    :return: the monitor files found, sorted
+    """
+    path = Path(log_path)
+    if path.is_file():
+        return [path]
+    return sorted(Path(p) for p in glob.glob(os.path.join(os.fspath(path), "**", "*monitor.csv"), recursive=True))
+
+
+def load_monitor_series(monitor_file: str | os.PathLike) -> Series:
+    """
+    Read a ``monitor.csv`` written during training (one line per joint episode).
+
+    :param monitor_file: the file (SB3's format: a ``#{...}`` header line, then CSV with ``r``, ``l``, ``t`` and the
+        metric columns)
+    :return: column name -> values; empty cells (envs without a metric) are NaN
+    """
+    with open(monitor_file, newline="") as file:
+        first = file.readline()
+        if not first.startswith("#"):
+            file.seek(0)
+        rows = list(csv.DictReader(file))
+    if not rows:
+        return {}
+    series: Series = {}
+    for key in rows[0]:
+        series[key] = np.array([float(row[key]) if row[key] not in ("", None) else np.nan for row in rows])
+    return series
+
+
+def load_tensorboard_series(log_path: str | os.PathLike, prefix: str = "rollout") -> Series:
+    """
+    Read the episode metrics logged by ``EpisodeMetricsCallback`` from TensorBoard event files (means over the
+    episodes between two dumps, against timesteps).
+
+    :param log_path: a folder holding event files (searched recursively)
+    :param prefix: logger section of the metrics
+    :return: metric name -> values, and ``"x"``: the timesteps; empty if nothing was found
+    """
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    files = sorted(glob.glob(os.path.join(os.fspath(log_path), "**", "events.out.tfevents.*"), recursive=True))
+    series: Series = {}
+    for event_file in files:
+        accumulator = EventAccumulator(event_file, size_guidance={"scalars": 0})
+        accumulator.Reload()
+        tags = accumulator.Tags().get("scalars", [])
+        for metric in (*METRICS, "wall_hits", "disconnections"):
+            tag = f"{prefix}/{metric}"
+            if tag in tags:
+                events = accumulator.Scalars(tag)
+                series[metric] = np.array([event.value for event in events])
+                series["x"] = np.array([event.step for event in events], dtype=np.float64)
+        if series:
+            break
+    return series
+
+
+def plot_training_logs(
+    log_path: str | os.PathLike, out_dir: str | os.PathLike, window: int | None = None, name: str = "training"
+) -> list[Path]:
+    """
+    The report's training figures from a run's logs: fairness vs coverage, fairness vs energy efficiency and each
+    metric vs episode. Reads the run's ``monitor.csv`` (one point per episode) or, failing that, its TensorBoard
+    event files (one point per logger dump, against timesteps).
+
+    :param log_path: an RL Zoo run folder, a ``monitor.csv`` file, or a TensorBoard log folder
+    :param out_dir: output folder (created)
+    :param window: moving-average window of the metric-vs-episode curves (default: about a twentieth of the run)
+    :param name: series label
+    :return: the paths written
+    :raises FileNotFoundError: if no log with the metrics is found
+    """
+    out = Path(out_dir)
+    series: Series = {}
+    x_label = "episode"
+    for monitor_file in find_monitor_files(log_path):
+        candidate = load_monitor_series(monitor_file)
+        if candidate and not np.all(np.isnan(candidate.get("coverage", np.array([np.nan])))):
+            series = candidate
+            break
+    if not series and Path(log_path).is_dir():
+        series = load_tensorboard_series(log_path)
+        x_label = "timesteps"
+    if not series or "coverage" not in series:
+        raise FileNotFoundError(
+            f"no training log with coverage metrics under {log_path} "
+            "(expected a monitor.csv from `python -m sb3_maddpg train` or TensorBoard events with rollout/coverage)"
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    n = len(series["coverage"])
+    if window is None:
+        window = max(1, n // 20)
+    runs = {name: series}
+    return [
+        plot_fairness_vs_coverage(runs, out / "train_fairness_vs_coverage.png", "Fairness vs coverage (training episodes)"),
+        plot_fairness_vs_efficiency(
+            runs, out / "train_fairness_vs_energy_efficiency.png", "Fairness vs energy efficiency (training episodes)"
+        ),
+        plot_metrics_vs_episode(runs, out / "train_metrics_vs_episode.png", x_label=x_label, window=window),
+    ]

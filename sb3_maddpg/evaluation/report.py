@@ -1,0 +1,155 @@
+"""Evaluate a trained model against the baselines and write the table, the results files and the figures."""
+
+import glob
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from sb3_maddpg.evaluation.baselines import Controller, GreedyStaticController, ModelController, RandomController
+from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
+from sb3_maddpg.evaluation.figures import (
+    plot_fairness_vs_coverage,
+    plot_fairness_vs_efficiency,
+    plot_metrics_vs_episode,
+    save_episode_figures,
+    series_from_results,
+)
+
+DEFAULT_ENV_ID = "uav_coverage_v0"
+
+
+def find_run_config(model_path: str | os.PathLike) -> tuple[str | None, dict[str, Any]]:
+    """
+    The env id and env kwargs a model was trained with, read from the RL Zoo run folder that holds it
+    (``<run>/<env_id>/config.yml`` and ``args.yml``, as ``enjoy`` reads them: the command line's ``--env-kwargs``
+    replace the YAML entry's ``env_kwargs``).
+
+    :param model_path: a model inside a run folder (final, best or checkpoint)
+    :return: the env id (None when the model is not in a run folder) and the env kwargs
+    """
+    run_dir = Path(model_path).resolve().parent
+    args_files = sorted(glob.glob(os.path.join(os.fspath(run_dir), "*", "args.yml")))
+    if not args_files:
+        return None, {}
+    params_dir = Path(args_files[0]).parent
+    with open(args_files[0]) as file:
+        args = yaml.load(file, Loader=yaml.UnsafeLoader) or {}
+    env_kwargs: dict[str, Any] = {}
+    config_file = params_dir / "config.yml"
+    if config_file.is_file():
+        with open(config_file) as file:
+            config = yaml.load(file, Loader=yaml.UnsafeLoader) or {}
+        env_kwargs.update(config.get("env_kwargs") or {})
+    if args.get("env_kwargs"):
+        env_kwargs = dict(args["env_kwargs"])
+    return args.get("env"), env_kwargs
+
+
+def evaluate_and_report(
+    out_dir: str | os.PathLike,
+    n_episodes: int = 10,
+    model_path: str | os.PathLike | None = None,
+    env_id: str | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+    seed: int = 0,
+    device: str = "auto",
+    state_steps: Sequence[int] | None = None,
+    gif: bool = True,
+    frame_every: int | None = None,
+    verbose: int = 1,
+) -> dict[str, Any]:
+    """
+    Run ``n_episodes`` with ``start="random"`` for the model (deterministic actions) and for the two baselines
+    (random actions; greedy static placement), print the table and write ``results.csv``, ``results.json``,
+    ``episodes.csv``, ``results.md`` and the figures into ``out_dir``.
+
+    :param out_dir: output folder
+    :param n_episodes: episodes per method
+    :param model_path: a saved MADDPG model; None to evaluate the baselines only
+    :param env_id: the env id; by default the model's run's, else ``uav_coverage_v0``
+    :param env_kwargs: env arguments over the model's training ones (``start`` is ``"random"`` unless given here)
+    :param seed: seed of the first episode (episode e uses seed + e for every method)
+    :param device: device of the model
+    :param state_steps: steps of the recorded episode whose state images are written (default: start, middle, end)
+    :param gif: whether to write the GIF of the recorded episode
+    :param frame_every: keep one GIF frame every this many steps (default: at most about 100 frames)
+    :param verbose: 0 silent, 1 table, 2 one line per episode
+    :return: ``summary``, ``results``, ``table``, ``files`` (name -> path) and ``env_kwargs``
+    """
+    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
+
+    run_env_id, run_env_kwargs = (None, {}) if model_path is None else find_run_config(model_path)
+    env_id = env_id or run_env_id or DEFAULT_ENV_ID
+    if env_id not in MULTIAGENT_ENVS:
+        raise ValueError(f"unknown env {env_id!r}; registered multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
+    kwargs = {**run_env_kwargs, "start": "random", **(env_kwargs or {})}
+    kwargs.pop("render_mode", None)
+
+    probe = make_multiagent_env(env_id, **kwargs)
+    core = getattr(probe, "core", None)
+    probe.close()
+    if core is None:
+        raise ValueError(f"{env_id} has no coverage metrics: evaluate runs uav_coverage envs only")
+    max_cycles = int(core.max_cycles)
+
+    controllers: list[Controller] = []
+    if model_path is not None:
+        from sb3_maddpg import MADDPG
+
+        model = MADDPG.load(model_path, device=device)
+        controllers.append(ModelController(model, name="maddpg"))
+    controllers += [RandomController(), GreedyStaticController()]
+    record_name = controllers[0].name if model_path is not None else "greedy_static"
+
+    if state_steps is None:
+        state_steps = sorted({0, max_cycles // 2, max_cycles})
+    if frame_every is None:
+        frame_every = max(1, max_cycles // 100)
+
+    results, record = evaluate_controllers(
+        lambda: make_multiagent_env(env_id, render_mode="rgb_array", **kwargs),
+        controllers,
+        n_episodes,
+        seed=seed,
+        record_controller=record_name,
+        state_steps=state_steps,
+        frame_every=frame_every,
+        verbose=int(verbose >= 2),
+    )
+    summary = summarize(results)
+    table = format_table(summary)
+    if verbose:
+        print(f"{env_id} {kwargs}, {n_episodes} episode(s) per method, seeds {seed}..{seed + n_episodes - 1}")
+        print(table)
+
+    out = Path(out_dir)
+    metadata = {
+        "env_id": env_id,
+        "env_kwargs": kwargs,
+        "model": None if model_path is None else os.fspath(model_path),
+        "n_episodes": n_episodes,
+        "seed": seed,
+        "deterministic": True,
+    }
+    files: dict[str, Path] = dict(write_results(out, results, summary, metadata))
+    series = series_from_results(results)
+    figures = out / "figures"
+    figures.mkdir(parents=True, exist_ok=True)
+    files["fairness_vs_coverage.png"] = plot_fairness_vs_coverage(series, figures / "fairness_vs_coverage.png")
+    files["fairness_vs_energy_efficiency.png"] = plot_fairness_vs_efficiency(
+        series, figures / "fairness_vs_energy_efficiency.png"
+    )
+    files["metrics_vs_episode.png"] = plot_metrics_vs_episode(
+        series, figures / "metrics_vs_episode.png", x_label="evaluation episode"
+    )
+    if record is not None:
+        if not gif:
+            record.frames.clear()
+        for path in save_episode_figures(record, figures, prefix=f"{record_name}_"):
+            files[path.name] = path
+    if verbose:
+        print(f"Results and figures written to {out}")
+    return {"summary": summary, "results": results, "table": table, "files": files, "env_kwargs": kwargs}

@@ -1,0 +1,492 @@
+"""MADDPG with centralised quantile critics and a CVaR actor objective, as an SB3 off-policy algorithm."""
+
+from typing import Any, ClassVar, TypeVar
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from pettingzoo.utils.env import ParallelEnv
+from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ConvertCallback, ProgressBarCallback
+from stable_baselines3.common.noise import ActionNoise
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
+from stable_baselines3.common.utils import get_parameters_by_name, polyak_update, should_collect_more_steps
+from stable_baselines3.common.vec_env import VecEnv
+
+from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
+from sb3_maddpg.common.distributional import cvar, quantile_huber_loss
+from sb3_maddpg.common.noise import DecayingGaussianNoise, current_noise_std
+from sb3_maddpg.maddpg.policies import CnnPolicy, MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentQuantileCritic
+
+SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
+
+
+class JointStepProgressBarCallback(ProgressBarCallback):
+    """
+    SB3's progress bar counting MADDPG's timesteps: one VecEnv step advances it by ``n_copies`` (one timestep per
+    joint step of each environment copy), not by the number of VecEnv rows.
+    """
+
+    def _on_step(self) -> bool:
+        self.pbar.update(self.model.n_copies)  # type: ignore[attr-defined]
+        return True
+
+
+class MADDPG(OffPolicyAlgorithm):
+    """
+    Multi-Agent DDPG with centralised quantile critics and a CVaR_alpha actor objective.
+
+    Decentralised actors mu_i(o_i) (one per agent, or one shared); centralised critics Z_i(o, a) with ``n_quantiles``
+    outputs at the midpoints tau_j = (j + 0.5) / n, trained with the quantile Huber loss (kappa = 1) towards
+    r_i + gamma (1 - d) Z_i'(o', a'), a'_j = mu_j'(o'_j); actor i maximises CVaR_alpha(Z_i(o, a)) with
+    a_i = mu_i(o_i) and the other agents' actions from the batch (MADDPG: Lowe et al. 2017, https://arxiv.org/abs/1706.02275;
+    quantile critics: QR-DQN, Dabney et al. 2018, https://arxiv.org/abs/1710.10044).
+
+    The environment is an SB3 VecEnv with one row per agent and copy, row = copy * n_agents + agent
+    (see ``make_multiagent_vec_env``). One timestep is one joint step of one environment copy: each VecEnv step
+    adds ``n_copies`` to ``num_timesteps``; ``total_timesteps``, ``learning_starts``, ``buffer_size``, the progress
+    bar and TensorBoard's x-axis count these. ``train_freq=(k, "step")`` means every k VecEnv steps, and callbacks
+    are called once per VecEnv step, as in SB3.
+
+    :param policy: the policy model to use (MlpPolicy, CnnPolicy, ...)
+    :param env: the VecEnv to learn from (can be None to load a trained model)
+    :param learning_rate: learning rate of the Adam optimizers (actors and critics), or a schedule of the
+        progress remaining (from 1 to 0)
+    :param buffer_size: replay buffer size in joint transitions (timesteps)
+    :param learning_starts: timesteps of uniformly random actions before learning starts
+    :param batch_size: joint transitions per gradient update
+    :param tau: soft update coefficient of the target networks ("Polyak update", between 0 and 1)
+    :param gamma: discount factor
+    :param train_freq: update the model every ``train_freq`` VecEnv steps; or a tuple like ``(5, "step")`` or,
+        with a single environment copy, ``(2, "episode")``
+    :param gradient_steps: gradient steps after each rollout; -1 does as many as timesteps collected
+    :param action_noise: exploration noise added to the actions rescaled to [-1, 1]; None gives the decaying Gaussian
+        noise (``DecayingGaussianNoise``: standard deviation 1.0 decaying towards 0.1)
+    :param replay_buffer_class: replay buffer class (default ``MultiAgentReplayBuffer``)
+    :param replay_buffer_kwargs: keyword arguments of the replay buffer
+    :param cvar_alpha: CVaR level alpha in (0, 1] of the actor objective; 1 is risk-neutral (the mean)
+    :param share_actor: one actor shared by all agents instead of one actor per agent
+    :param n_agents: number of agents; read from the env's ``n_agents`` attribute when None
+    :param stats_window_size: window size of the rollout logging (episodes)
+    :param tensorboard_log: the log location for TensorBoard (if None, no logging)
+    :param policy_kwargs: additional arguments of the policy (``n_quantiles``, ``net_arch``,
+        ``features_extractor_class``, ...)
+    :param verbose: verbosity level: 0 no output, 1 info messages, 2 debug messages
+    :param seed: seed for the pseudo random generators
+    :param device: device (cpu, cuda, ...) on which the code should run; "auto" uses the GPU if possible
+    :param _init_setup_model: whether or not to build the networks at the creation of the instance
+    """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
+        "MlpPolicy": MlpPolicy,
+        "CnnPolicy": CnnPolicy,
+    }
+    policy: MADDPGPolicy
+    actor: MultiAgentActor
+    actor_target: MultiAgentActor
+    critic: MultiAgentQuantileCritic
+    critic_target: MultiAgentQuantileCritic
+    replay_buffer: MultiAgentReplayBuffer | None  # type: ignore[assignment]
+
+    def __init__(
+        self,
+        policy: str | type[MADDPGPolicy],
+        env: GymEnv | str | None,
+        learning_rate: float | Schedule = 1e-3,
+        buffer_size: int = 1_000_000,
+        learning_starts: int = 100,
+        batch_size: int = 256,
+        tau: float = 0.01,
+        gamma: float = 0.95,
+        train_freq: int | tuple[int, str] = 1,
+        gradient_steps: int = 1,
+        action_noise: ActionNoise | None = None,
+        replay_buffer_class: type[ReplayBuffer] | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        cvar_alpha: float = 1.0,
+        share_actor: bool = False,
+        n_agents: int | None = None,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: th.device | str = "auto",
+        _init_setup_model: bool = True,
+    ) -> None:
+        if isinstance(cvar_alpha, bool) or not isinstance(cvar_alpha, int | float) or not 0.0 < cvar_alpha <= 1.0:
+            raise ValueError(f"cvar_alpha must be a number in (0, 1] (1 = risk-neutral mean), got {cvar_alpha!r}")
+        if isinstance(env, ParallelEnv):
+            raise TypeError(
+                "MADDPG takes an SB3 VecEnv with one row per agent, not a PettingZoo ParallelEnv: "
+                "wrap it with sb3_maddpg.make_multiagent_vec_env(env_fn, n_envs=...)"
+            )
+        if env is not None and not isinstance(env, str) and not isinstance(env.action_space, spaces.Box):
+            raise TypeError(f"MADDPG accepts Box (continuous) action spaces, got {env.action_space}")
+        if env is not None and not isinstance(env, str) and not isinstance(env.observation_space, spaces.Box):
+            raise TypeError(f"MADDPG accepts Box observation spaces (vectors or images), got {env.observation_space}")
+        super().__init__(
+            policy,
+            env,  # type: ignore[arg-type]
+            learning_rate,
+            buffer_size,
+            learning_starts,
+            batch_size,
+            tau,
+            gamma,
+            train_freq,
+            gradient_steps,
+            action_noise=action_noise,
+            replay_buffer_class=replay_buffer_class,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            device=device,
+            seed=seed,
+            sde_support=False,
+            supported_action_spaces=(spaces.Box,),
+            support_multi_env=True,
+        )
+        self.cvar_alpha = float(cvar_alpha)
+        self.share_actor = share_actor
+        self.n_agents: int | None = n_agents
+        self.agent_names: list[str] | None = None
+        if self.env is not None:
+            self._read_agents(self.env, n_agents)
+
+        if _init_setup_model:
+            self._setup_model()
+
+    @property
+    def n_copies(self) -> int:
+        """Number of environment copies: VecEnv rows / n_agents."""
+        assert self.n_agents is not None
+        return self.n_envs // self.n_agents
+
+    def _read_agents(self, env: VecEnv, n_agents: int | None) -> None:
+        """Set ``n_agents`` and ``agent_names`` from the env (or the argument) and check the VecEnv's rows."""
+        env_n_agents = getattr(env, "n_agents", None)
+        if n_agents is not None and (isinstance(n_agents, bool) or not isinstance(n_agents, int) or n_agents < 1):
+            raise ValueError(f"n_agents must be an integer >= 1, got {n_agents!r}")
+        if env_n_agents is not None and n_agents is not None and env_n_agents != n_agents:
+            raise ValueError(f"n_agents={n_agents} disagrees with the env's n_agents={env_n_agents}")
+        n_agents = n_agents if n_agents is not None else env_n_agents
+        if n_agents is None:
+            n_agents = self.n_agents  # restored by load()
+        if n_agents is None:
+            raise ValueError(
+                "MADDPG needs the number of agents: build the env with sb3_maddpg.make_multiagent_vec_env "
+                "(it sets `n_agents`) or pass n_agents=..."
+            )
+        if env.num_envs % n_agents != 0:
+            raise ValueError(
+                f"the VecEnv has {env.num_envs} rows, which is not a multiple of n_agents={n_agents}; "
+                "rows must be agent-major inside each copy (row = copy * n_agents + agent)"
+            )
+        self.n_agents = int(n_agents)
+        names = getattr(env, "possible_agents", None)
+        if names is not None and len(names) == self.n_agents:
+            self.agent_names = [str(name) for name in names]
+        elif self.agent_names is None or len(self.agent_names) != self.n_agents:
+            self.agent_names = [f"agent_{i}" for i in range(self.n_agents)]
+
+    def _setup_model(self) -> None:
+        # As OffPolicyAlgorithm._setup_model, but the replay buffer is only allocated when there is an env to fill
+        # it, so that load() without an env (to act) does not allocate a full-size buffer.
+        if self.env is not None:
+            self._read_agents(self.env, self.n_agents)
+        if self.n_agents is None:
+            raise ValueError("MADDPG needs an env or n_agents=... to build its networks")
+        if self.agent_names is None:
+            self.agent_names = [f"agent_{i}" for i in range(self.n_agents)]
+        self._setup_lr_schedule()
+        self.set_random_seed(self.seed)
+
+        if self.replay_buffer_class is None:
+            self.replay_buffer_class = MultiAgentReplayBuffer
+        if issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
+            self.replay_buffer_kwargs["n_agents"] = self.n_agents
+        if self.replay_buffer is None and self.env is not None:
+            self._make_replay_buffer()
+
+        if self.action_noise is None:
+            action_dim = int(np.prod(self.action_space.shape))
+            self.action_noise = DecayingGaussianNoise(mean=np.zeros(action_dim), sigma=1.0, final_sigma=0.1)
+
+        self.policy = self.policy_class(  # type: ignore[assignment]
+            self.observation_space,
+            self.action_space,
+            self.lr_schedule,
+            n_agents=self.n_agents,
+            share_actor=self.share_actor,
+            **self.policy_kwargs,
+        )
+        self.policy = self.policy.to(self.device)
+        self._convert_train_freq()
+        self._create_aliases()
+        # BatchNorm running statistics: copied to the targets at every target update (see TD3)
+        self.actor_batch_norm_stats = get_parameters_by_name(self.actor, ["running_"])
+        self.critic_batch_norm_stats = get_parameters_by_name(self.critic, ["running_"])
+        self.actor_batch_norm_stats_target = get_parameters_by_name(self.actor_target, ["running_"])
+        self.critic_batch_norm_stats_target = get_parameters_by_name(self.critic_target, ["running_"])
+
+    def _make_replay_buffer(self) -> None:
+        assert self.replay_buffer_class is not None
+        self.replay_buffer = self.replay_buffer_class(  # type: ignore[assignment]
+            self.buffer_size,
+            self.observation_space,
+            self.action_space,
+            device=self.device,
+            n_envs=self.n_envs,
+            optimize_memory_usage=self.optimize_memory_usage,
+            **self.replay_buffer_kwargs,
+        )
+
+    def _create_aliases(self) -> None:
+        self.actor = self.policy.actor
+        self.actor_target = self.policy.actor_target
+        self.critic = self.policy.critic
+        self.critic_target = self.policy.critic_target
+
+    def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
+        super().set_env(env, force_reset=force_reset)
+        assert self.env is not None
+        self._read_agents(self.env, self.n_agents)
+
+    def critic_loss(self, replay_data: MultiAgentReplayBufferSamples) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
+        """
+        Per-agent critic loss on a batch (no optimizer step).
+
+        :param replay_data: a batch of B joint transitions
+        :return: the loss of each critic (N,), the critics' quantiles on the batch's actions (B, N, n_quantiles),
+            and the critic-side encodings of the observations (B, N, F), which the actor loss reuses
+        """
+        with th.no_grad():
+            # Target distribution (SPEC 2): r_i + gamma (1 - d) Z_i'(o', a'), a'_j = mu_j'(o'_j) from the target actors
+            next_actions = self.actor_target(replay_data.next_observations)  # (B, N, A)
+            next_quantiles = self.critic_target(replay_data.next_observations, next_actions)  # (B, N, n_q)
+            not_done = 1.0 - replay_data.dones.unsqueeze(-1)  # (B, 1, 1): terminations only, not truncations
+            target_quantiles = replay_data.rewards.unsqueeze(-1) + not_done * self.gamma * next_quantiles
+
+        # Each agent's observation is encoded once; every critic reads all encodings
+        features = self.critic.encode(replay_data.observations)  # (B, N, F)
+        current_quantiles = self.critic.quantiles_from_features(features, replay_data.actions)  # (B, N, n_q)
+        # Quantile regression (QR-DQN): quantile Huber loss, kappa = 1, at the midpoints; mean over the batch
+        loss = quantile_huber_loss(current_quantiles, target_quantiles).mean(dim=0)  # (N,)
+        return loss, current_quantiles, features
+
+    def actor_loss(self, replay_data: MultiAgentReplayBufferSamples, features: th.Tensor) -> th.Tensor:
+        """
+        Per-agent actor loss: -CVaR_alpha(Z_i(o, a)) where a_i = mu_i(o_i) and a_j (j != i) come from the batch.
+
+        :param replay_data: a batch of joint transitions
+        :param features: critic-side encodings of ``replay_data.observations``, (B, N, F) (treated as constants)
+        :return: loss of each agent, (N,); loss i depends only on actor i's output
+        """
+        policy_actions = self.actor(replay_data.observations)  # (B, N, A)
+        n_agents = policy_actions.shape[1]
+        # mixed[b, i, j] = mu_j(o_j) if i == j else a_j from the batch: the joint action critic i scores
+        own = th.eye(n_agents, dtype=th.bool, device=policy_actions.device).view(1, n_agents, n_agents, 1)
+        mixed = th.where(own, policy_actions.unsqueeze(1), replay_data.actions.unsqueeze(1))  # (B, N, N, A)
+        quantiles = self.critic.quantiles_from_features(features, mixed)  # (B, N, n_q)
+        return -cvar(quantiles, self.cvar_alpha).mean(dim=0)
+
+    def train(self, gradient_steps: int, batch_size: int = 100) -> None:
+        # Switch to train mode (this affects batch norm / dropout)
+        self.policy.set_training_mode(True)
+        self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
+        assert self.replay_buffer is not None
+
+        critic_losses, actor_losses, q_means, cvars = [], [], [], []
+        for _ in range(gradient_steps):
+            self._n_updates += 1
+            replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
+
+            # Critics: the sum of the per-critic losses gives each critic the gradient of its own loss
+            critic_loss, current_quantiles, features = self.critic_loss(replay_data)
+            self.critic.optimizer.zero_grad()
+            critic_loss.sum().backward()
+            self.critic.optimizer.step()
+
+            # Actors, after the critic step as in TD3: actor i maximises CVaR_alpha of Z_i with a_i = mu_i(o_i).
+            # The encodings of this step's observations are reused (detached) instead of encoding them again.
+            actor_loss = self.actor_loss(replay_data, features.detach())
+            self.actor.optimizer.zero_grad()
+            actor_loss.sum().backward(inputs=list(self.actor.parameters()))
+            self.actor.optimizer.step()
+
+            # Soft target updates; BatchNorm running statistics are copied (see SB3 GH issue #996)
+            polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
+            polyak_update(self.actor.parameters(), self.actor_target.parameters(), self.tau)
+            polyak_update(self.critic_batch_norm_stats, self.critic_batch_norm_stats_target, 1.0)
+            polyak_update(self.actor_batch_norm_stats, self.actor_batch_norm_stats_target, 1.0)
+
+            with th.no_grad():
+                critic_losses.append(critic_loss.detach())
+                actor_losses.append(actor_loss.detach())
+                q_means.append(current_quantiles.mean(dim=(0, 2)))
+                cvars.append(cvar(current_quantiles, self.cvar_alpha).mean(dim=0))
+
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        if gradient_steps == 0:
+            return
+        # One device-to-host transfer for all statistics: (4, N)
+        stats = th.stack([th.stack(values).mean(dim=0) for values in (critic_losses, actor_losses, q_means, cvars)])
+        stats_np = stats.cpu().numpy()
+        assert self.agent_names is not None
+        for i, name in enumerate(self.agent_names):
+            self.logger.record(f"train/critic_loss_{name}", float(stats_np[0, i]))
+            self.logger.record(f"train/actor_loss_{name}", float(stats_np[1, i]))
+            self.logger.record(f"train/q_mean_{name}", float(stats_np[2, i]))
+            self.logger.record(f"train/cvar_{name}", float(stats_np[3, i]))
+        self.logger.record("train/critic_loss", float(stats_np[0].mean()))
+        self.logger.record("train/actor_loss", float(stats_np[1].mean()))
+        noise_std = current_noise_std(self.action_noise)
+        if noise_std is not None:
+            self.logger.record("train/noise_std", noise_std)
+
+    def collect_rollouts(
+        self,
+        env: VecEnv,
+        callback: BaseCallback,
+        train_freq: TrainFreq,
+        replay_buffer: ReplayBuffer,
+        action_noise: ActionNoise | None = None,
+        learning_starts: int = 0,
+        log_interval: int | None = None,
+    ) -> RolloutReturn:
+        """
+        Collect experiences and store them into the replay buffer.
+
+        Overridden from ``OffPolicyAlgorithm.collect_rollouts`` only to count MADDPG's timestep (one joint step of
+        one env copy: ``num_timesteps += n_copies`` per VecEnv step, where SB3 adds the number of rows) and one
+        episode per copy (SB3 would count one per agent row); the rest is SB3's code.
+
+        :param env: the training environment
+        :param callback: callback called at each VecEnv step (and at the beginning and end of the rollout)
+        :param train_freq: how much experience to collect: VecEnv steps, or episodes with one env copy
+        :param replay_buffer: the replay buffer
+        :param action_noise: action noise for exploration
+        :param learning_starts: timesteps of random actions before learning starts
+        :param log_interval: log data every ``log_interval`` episodes
+        :return: timesteps and episodes collected, and whether to continue training
+        """
+        # Switch to eval mode (this affects batch norm / dropout)
+        self.policy.set_training_mode(False)
+
+        num_collected_steps, num_collected_episodes = 0, 0
+        n_copies, n_agents = self.n_copies, self.n_agents
+        assert n_agents is not None
+
+        assert isinstance(env, VecEnv), "You must pass a VecEnv"
+        assert train_freq.frequency > 0, "Should at least collect one step or episode."
+        if n_copies > 1 and train_freq.unit != TrainFrequencyUnit.STEP:
+            raise ValueError("train_freq in episodes needs a single environment copy; use (k, 'step') with several copies")
+
+        callback.on_rollout_start()
+        continue_training = True
+        while should_collect_more_steps(train_freq, num_collected_steps, num_collected_episodes):
+            # Select action randomly or according to policy
+            actions, buffer_actions = self._sample_action(learning_starts, action_noise, env.num_envs)
+
+            # Rescale and perform action
+            new_obs, rewards, dones, infos = env.step(actions)
+
+            self.num_timesteps += n_copies
+            num_collected_steps += 1
+
+            # Give access to local variables
+            callback.update_locals(locals())
+            # Only stop training if return value is False, not when it is None.
+            if not callback.on_step():
+                return RolloutReturn(num_collected_steps * n_copies, num_collected_episodes, continue_training=False)
+
+            # Retrieve reward and episode length (episode statistics come once per joint episode)
+            self._update_info_buffer(infos, dones)
+
+            # Store data in replay buffer (normalized action and unnormalized observation)
+            self._store_transition(replay_buffer, buffer_actions, new_obs, rewards, dones, infos)  # type: ignore[arg-type]
+
+            self._update_current_progress_remaining(self.num_timesteps, self._total_timesteps)
+            self._on_step()
+
+            for copy in np.flatnonzero(np.asarray(dones).reshape(n_copies, n_agents).any(axis=1)):
+                # Update stats: one episode per copy
+                num_collected_episodes += 1
+                self._episode_num += 1
+
+                if action_noise is not None:
+                    kwargs = dict(indices=list(range(copy * n_agents, (copy + 1) * n_agents))) if env.num_envs > 1 else {}
+                    action_noise.reset(**kwargs)
+
+                # Log training infos
+                if log_interval is not None and self._episode_num % log_interval == 0:
+                    self.dump_logs()
+        callback.on_rollout_end()
+
+        return RolloutReturn(num_collected_steps * n_copies, num_collected_episodes, continue_training)
+
+    def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
+        # As BaseAlgorithm._init_callback, with a progress bar that counts MADDPG's timesteps
+        if isinstance(callback, list):
+            callback = CallbackList(callback)
+        if not isinstance(callback, BaseCallback):
+            callback = ConvertCallback(callback)
+        if progress_bar:
+            callback = CallbackList([callback, JointStepProgressBarCallback()])
+        callback.init_callback(self)
+        return callback
+
+    def _setup_learn(
+        self,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        reset_num_timesteps: bool = True,
+        tb_log_name: str = "run",
+        progress_bar: bool = False,
+    ) -> tuple[int, BaseCallback]:
+        # A model loaded without an env gets its replay buffer when it is first trained
+        if self.replay_buffer is None:
+            assert self.env is not None, "You must set the environment before calling learn()"
+            self._make_replay_buffer()
+        return super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
+
+    def learn(
+        self: SelfMADDPG,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        log_interval: int = 4,
+        tb_log_name: str = "MADDPG",
+        reset_num_timesteps: bool = True,
+        progress_bar: bool = False,
+    ) -> SelfMADDPG:
+        """
+        Train the model.
+
+        :param total_timesteps: timesteps to train on (joint steps of one env copy; a lower bound, as in SB3)
+        :param callback: callback(s) called at every VecEnv step
+        :param log_interval: log every ``log_interval`` episodes (joint episodes of a copy)
+        :param tb_log_name: the name of the run for TensorBoard logging
+        :param reset_num_timesteps: whether or not to reset the current timestep number (used in logging)
+        :param progress_bar: display a progress bar (in timesteps) using tqdm and rich
+        :return: the trained model
+        """
+        return super().learn(
+            total_timesteps=total_timesteps,
+            callback=callback,
+            log_interval=log_interval,
+            tb_log_name=tb_log_name,
+            reset_num_timesteps=reset_num_timesteps,
+            progress_bar=progress_bar,
+        )
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "actor", "critic", "actor_target", "critic_target"]
+
+    def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
+        state_dicts = ["policy", "actor.optimizer", "critic.optimizer"]
+        return state_dicts, []

@@ -1,0 +1,327 @@
+"""Actors, centralised quantile critics and the MADDPG policy."""
+
+from typing import Any
+
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.preprocessing import get_action_dim
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, FlattenExtractor, get_actor_critic_arch
+from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
+from torch import nn
+
+from sb3_maddpg.common.torch_layers import BatchedMlp, MultiAgentFeatures, ReportCNN
+
+
+class MultiAgentActor(nn.Module):
+    """
+    Decentralised deterministic actors: agent i's action is mu_i(o_i), squashed by tanh into [-1, 1]
+    (the policy rescales it to the action space). All agents are evaluated together.
+
+    :param observation_space: one agent's observation space
+    :param action_space: one agent's action space
+    :param n_agents: number of agents N
+    :param net_arch: hidden layer sizes of each actor
+    :param activation_fn: activation function
+    :param features_extractor_class: features extractor class
+    :param features_extractor_kwargs: its keyword arguments
+    :param normalize_images: divide image observations by 255
+    :param shared: one actor (extractor and MLP) for all agents
+    """
+
+    def __init__(
+        self,
+        observation_space: spaces.Box,
+        action_space: spaces.Box,
+        n_agents: int,
+        net_arch: list[int],
+        activation_fn: type[nn.Module],
+        features_extractor_class: type[BaseFeaturesExtractor],
+        features_extractor_kwargs: dict[str, Any],
+        normalize_images: bool,
+        shared: bool = False,
+    ) -> None:
+        super().__init__()
+        self.n_agents = n_agents
+        self.features = MultiAgentFeatures(
+            observation_space, n_agents, features_extractor_class, features_extractor_kwargs, normalize_images, shared=shared
+        )
+        self.mu = BatchedMlp(
+            1 if shared else n_agents,
+            self.features.features_dim,
+            get_action_dim(action_space),
+            net_arch,
+            activation_fn,
+            squash_output=True,
+        )
+
+    def forward(self, observations: th.Tensor) -> th.Tensor:
+        """
+        :param observations: (B, N, *obs_shape)
+        :return: actions in [-1, 1], (B, N, action_dim)
+        """
+        return self.mu(self.features(observations))
+
+
+class MultiAgentQuantileCritic(nn.Module):
+    """
+    Centralised quantile critics: critic i maps every agent's observation and action to ``n_quantiles`` values
+    Z_i(o, a)_j, the return distribution's quantiles at the midpoints tau_j = (j + 0.5) / n.
+
+    Each agent's observation is encoded once by that agent's critic-side extractor, and every critic reads all N
+    encodings: the input of each critic is [f_1, ..., f_N, a_1, ..., a_N]. So the extractor passes per update grow
+    with N, not N^2. The N critic MLPs run as one batched network.
+
+    :param observation_space: one agent's observation space
+    :param action_space: one agent's action space
+    :param n_agents: number of agents N
+    :param n_quantiles: number of quantiles per critic
+    :param net_arch: hidden layer sizes of each critic
+    :param activation_fn: activation function
+    :param features_extractor_class: features extractor class
+    :param features_extractor_kwargs: its keyword arguments
+    :param normalize_images: divide image observations by 255
+    """
+
+    def __init__(
+        self,
+        observation_space: spaces.Box,
+        action_space: spaces.Box,
+        n_agents: int,
+        n_quantiles: int,
+        net_arch: list[int],
+        activation_fn: type[nn.Module],
+        features_extractor_class: type[BaseFeaturesExtractor],
+        features_extractor_kwargs: dict[str, Any],
+        normalize_images: bool,
+    ) -> None:
+        super().__init__()
+        self.n_agents = n_agents
+        self.n_quantiles = n_quantiles
+        self.features = MultiAgentFeatures(
+            observation_space, n_agents, features_extractor_class, features_extractor_kwargs, normalize_images
+        )
+        input_dim = n_agents * (self.features.features_dim + get_action_dim(action_space))
+        self.quantile_nets = BatchedMlp(n_agents, input_dim, n_quantiles, net_arch, activation_fn)
+
+    def encode(self, observations: th.Tensor) -> th.Tensor:
+        """
+        :param observations: (B, N, *obs_shape)
+        :return: features (B, N, F), one encoding per agent, shared by all critics
+        """
+        return self.features(observations)
+
+    def quantiles_from_features(self, features: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        """
+        :param features: (B, N, F) from ``encode``
+        :param actions: joint actions seen by every critic, (B, N, A); or one joint action per critic,
+            (B, N_critics = N, N, A), where ``actions[:, i]`` is the joint action critic i scores
+        :return: quantiles (B, N, n_quantiles), ``[:, i]`` from critic i
+        """
+        batch_size, n_agents = features.shape[:2]
+        if actions.dim() == 3:
+            actions = actions.unsqueeze(1).expand(batch_size, n_agents, n_agents, actions.shape[-1])
+        joint_features = features.flatten(1).unsqueeze(1).expand(batch_size, n_agents, -1)
+        # (B, N_critics, N*F + N*A)
+        critic_inputs = th.cat([joint_features, actions.flatten(2)], dim=2)
+        return self.quantile_nets(critic_inputs)
+
+    def forward(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        """
+        :param observations: (B, N, *obs_shape)
+        :param actions: (B, N, A) in [-1, 1]
+        :return: quantiles (B, N, n_quantiles)
+        """
+        return self.quantiles_from_features(self.encode(observations), actions)
+
+
+class MADDPGPolicy(BasePolicy):
+    """
+    Policy of MADDPG: decentralised actors, centralised quantile critics and their target networks.
+
+    ``predict`` takes SB3's row layout, (n_copies * N, *obs_shape) with row = copy * N + agent, and gives row r
+    the action of actor r mod N.
+
+    :param observation_space: one agent's observation space (a Box)
+    :param action_space: one agent's action space (a Box)
+    :param lr_schedule: learning rate schedule
+    :param n_agents: number of agents N
+    :param share_actor: one actor for all agents instead of one per agent
+    :param n_quantiles: number of quantiles of each critic (1 gives a classic scalar critic)
+    :param net_arch: hidden layers of actors and critics: a list, or a dict with keys ``pi`` and ``qf``
+        (default [64, 64], as in the MADDPG paper)
+    :param activation_fn: activation function
+    :param features_extractor_class: features extractor (``FlattenExtractor`` for MlpPolicy, ``ReportCNN`` for CnnPolicy)
+    :param features_extractor_kwargs: keyword arguments of the extractor
+    :param normalize_images: divide image observations by 255
+    :param optimizer_class: optimizer of actors and critics
+    :param optimizer_kwargs: its keyword arguments, without the learning rate
+    """
+
+    actor: MultiAgentActor
+    actor_target: MultiAgentActor
+    critic: MultiAgentQuantileCritic
+    critic_target: MultiAgentQuantileCritic
+
+    def __init__(
+        self,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        lr_schedule: Schedule,
+        n_agents: int = 1,
+        share_actor: bool = False,
+        n_quantiles: int = 50,
+        net_arch: list[int] | dict[str, list[int]] | None = None,
+        activation_fn: type[nn.Module] = nn.ReLU,
+        features_extractor_class: type[BaseFeaturesExtractor] = FlattenExtractor,
+        features_extractor_kwargs: dict[str, Any] | None = None,
+        normalize_images: bool = True,
+        optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
+        optimizer_kwargs: dict[str, Any] | None = None,
+    ) -> None:
+        if not isinstance(observation_space, spaces.Box):
+            raise TypeError(f"MADDPGPolicy accepts a Box observation space (vector or image), got {observation_space}")
+        if not isinstance(action_space, spaces.Box):
+            raise TypeError(f"MADDPGPolicy accepts a Box (continuous) action space, got {action_space}")
+        if isinstance(n_quantiles, bool) or not isinstance(n_quantiles, int) or n_quantiles < 1:
+            raise ValueError(f"n_quantiles must be an integer >= 1, got {n_quantiles!r}")
+        if isinstance(n_agents, bool) or not isinstance(n_agents, int) or n_agents < 1:
+            raise ValueError(f"n_agents must be an integer >= 1, got {n_agents!r}")
+        super().__init__(
+            observation_space,
+            action_space,
+            features_extractor_class,
+            features_extractor_kwargs,
+            optimizer_class=optimizer_class,
+            optimizer_kwargs=optimizer_kwargs,
+            squash_output=True,
+            normalize_images=normalize_images,
+        )
+        if net_arch is None:
+            net_arch = [64, 64]
+        actor_arch, critic_arch = get_actor_critic_arch(net_arch)
+        self.net_arch = net_arch
+        self.activation_fn = activation_fn
+        self.n_agents = n_agents
+        self.share_actor = share_actor
+        self.n_quantiles = n_quantiles
+        common = dict(
+            observation_space=observation_space,
+            action_space=action_space,
+            n_agents=n_agents,
+            activation_fn=activation_fn,
+            features_extractor_class=features_extractor_class,
+            features_extractor_kwargs=self.features_extractor_kwargs,
+            normalize_images=normalize_images,
+        )
+        self.actor_kwargs = dict(common, net_arch=actor_arch, shared=share_actor)
+        self.critic_kwargs = dict(common, net_arch=critic_arch, n_quantiles=n_quantiles)
+        self._build(lr_schedule)
+
+    def _build(self, lr_schedule: Schedule) -> None:
+        self.actor = MultiAgentActor(**self.actor_kwargs)
+        self.actor_target = MultiAgentActor(**self.actor_kwargs)
+        self.actor_target.load_state_dict(self.actor.state_dict())
+        self.actor.optimizer = self.optimizer_class(  # type: ignore[assignment]
+            self.actor.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs  # type: ignore[call-arg]
+        )
+        self.critic = MultiAgentQuantileCritic(**self.critic_kwargs)
+        self.critic_target = MultiAgentQuantileCritic(**self.critic_kwargs)
+        self.critic_target.load_state_dict(self.critic.state_dict())
+        self.critic.optimizer = self.optimizer_class(  # type: ignore[assignment]
+            self.critic.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs  # type: ignore[call-arg]
+        )
+        # Target networks always use their (copied) BatchNorm running statistics
+        self.actor_target.train(False)
+        self.critic_target.train(False)
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data = super()._get_constructor_parameters()
+        data.update(
+            dict(
+                n_agents=self.n_agents,
+                share_actor=self.share_actor,
+                n_quantiles=self.n_quantiles,
+                net_arch=self.net_arch,
+                activation_fn=self.activation_fn,
+                lr_schedule=self._dummy_schedule,  # not needed to load the policy alone
+                optimizer_class=self.optimizer_class,
+                optimizer_kwargs=self.optimizer_kwargs,
+                features_extractor_class=self.features_extractor_class,
+                features_extractor_kwargs=self.features_extractor_kwargs,
+            )
+        )
+        return data
+
+    def forward(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
+        return self._predict(observation, deterministic=deterministic)
+
+    def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
+        """
+        Actions of SB3's rows (deterministic: ``deterministic`` is ignored, exploration noise is added outside).
+
+        :param observation: (R, *obs_shape) with R a multiple of N, row r belonging to agent r mod N
+        :return: actions in [-1, 1], (R, action_dim)
+        """
+        assert isinstance(observation, th.Tensor)
+        n_rows = observation.shape[0]
+        if n_rows % self.n_agents != 0:
+            raise ValueError(
+                f"predict expects rows of whole joint observations (a multiple of n_agents={self.n_agents} rows, "
+                f"row = copy * n_agents + agent), got {n_rows} rows"
+            )
+        joint = observation.view(n_rows // self.n_agents, self.n_agents, *observation.shape[1:])
+        return self.actor(joint).reshape(n_rows, -1)
+
+    def set_training_mode(self, mode: bool) -> None:
+        """
+        Train mode (BatchNorm uses batch statistics and updates running ones) or eval mode (acting).
+        Target networks stay in eval mode.
+
+        :param mode: True for training mode
+        """
+        self.actor.train(mode)
+        self.critic.train(mode)
+        self.training = mode
+
+
+MlpPolicy = MADDPGPolicy
+
+
+class CnnPolicy(MADDPGPolicy):
+    """
+    MADDPG policy for image observations: ``MADDPGPolicy`` whose default features extractor is the report's CNN
+    (``ReportCNN``). Parameters as in ``MADDPGPolicy``.
+    """
+
+    def __init__(
+        self,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        lr_schedule: Schedule,
+        n_agents: int = 1,
+        share_actor: bool = False,
+        n_quantiles: int = 50,
+        net_arch: list[int] | dict[str, list[int]] | None = None,
+        activation_fn: type[nn.Module] = nn.ReLU,
+        features_extractor_class: type[BaseFeaturesExtractor] = ReportCNN,
+        features_extractor_kwargs: dict[str, Any] | None = None,
+        normalize_images: bool = True,
+        optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
+        optimizer_kwargs: dict[str, Any] | None = None,
+    ) -> None:
+        super().__init__(
+            observation_space,
+            action_space,
+            lr_schedule,
+            n_agents=n_agents,
+            share_actor=share_actor,
+            n_quantiles=n_quantiles,
+            net_arch=net_arch,
+            activation_fn=activation_fn,
+            features_extractor_class=features_extractor_class,
+            features_extractor_kwargs=features_extractor_kwargs,
+            normalize_images=normalize_images,
+            optimizer_class=optimizer_class,
+            optimizer_kwargs=optimizer_kwargs,
+        )

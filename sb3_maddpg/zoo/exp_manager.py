@@ -1,0 +1,286 @@
+"""RL Zoo's ``ExperimentManager`` and ``create_test_env`` taught to build multi-agent VecEnvs."""
+
+import inspect
+import os
+from collections.abc import Callable
+from copy import deepcopy
+from typing import Any
+
+import numpy as np
+from rl_zoo3.exp_manager import ExperimentManager
+from rl_zoo3.utils import ALGOS, get_wrapper_class
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import EvalCallback
+from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecFrameStack, VecNormalize
+
+from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
+from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor, copy_multiagent_attributes
+from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
+
+# Keys of an RL Zoo YAML entry that RL Zoo consumes itself; every other key is an argument of the algorithm.
+ZOO_KEYS = frozenset(
+    {
+        "n_timesteps",
+        "n_envs",
+        "env_kwargs",
+        "normalize",
+        "frame_stack",
+        "env_wrapper",
+        "vec_env_wrapper",
+        "callback",
+        "monitor_kwargs",
+        "noise_type",
+        "noise_std",
+        # with noise_type "decaying-normal" (MADDPG's decaying Gaussian noise, SPEC §2)
+        "noise_final_std",
+        "noise_decay",
+    }
+)
+DECAYING_NOISE = "decaying-normal"
+# Algorithm arguments RL Zoo passes itself, so a YAML entry must not.
+_RESERVED_ALGO_ARGS = frozenset({"self", "env", "tensorboard_log", "seed", "verbose", "device", "_init_setup_model"})
+
+
+def accepted_hyperparameters(algo_class: type[BaseAlgorithm]) -> set[str]:
+    """
+    The keys a YAML entry may hold for an algorithm.
+
+    :param algo_class: the algorithm
+    :return: RL Zoo's own keys and the algorithm's constructor arguments
+    """
+    parameters = inspect.signature(algo_class.__init__).parameters
+    return set(ZOO_KEYS) | {name for name in parameters if name not in _RESERVED_ALGO_ARGS}
+
+
+def check_hyperparameter_keys(hyperparams: dict[str, Any], algo: str, where: str) -> None:
+    """
+    Raise a :class:`UsageError` naming any key the algorithm would not accept (instead of a ``TypeError`` deep
+    inside its constructor).
+
+    :param hyperparams: the YAML entry, possibly updated by ``-params``
+    :param algo: the RL Zoo algorithm name
+    :param where: where the entry comes from, for the message
+    """
+    algo_class = ALGOS[algo]
+    if any(kind.kind == inspect.Parameter.VAR_KEYWORD for kind in inspect.signature(algo_class.__init__).parameters.values()):
+        return
+    accepted = accepted_hyperparameters(algo_class)
+    unknown = sorted(set(hyperparams) - accepted)
+    if unknown:
+        raise UsageError(
+            f"unknown hyperparameter(s) {', '.join(map(repr, unknown))} for {algo} in {where}; "
+            f"accepted keys: {', '.join(sorted(accepted))}"
+        )
+
+
+def make_zoo_multiagent_vec_env(
+    env_id: str,
+    n_envs: int,
+    seed: int | None,
+    env_kwargs: dict[str, Any] | None,
+    vec_env_class: type[VecEnv] | None = None,
+) -> VecEnv:
+    """
+    The multi-agent VecEnv of a registered env id, as RL Zoo's ``n_envs`` copies.
+
+    :param env_id: a registered multi-agent env id
+    :param n_envs: environment copies (each contributes ``n_agents`` rows)
+    :param seed: seed of the first copy
+    :param env_kwargs: constructor arguments over the registered defaults
+    :param vec_env_class: RL Zoo's ``--vec-env`` choice; ``SubprocVecEnv`` runs the copies in worker processes
+    :return: the VecEnv
+    """
+    from sb3_maddpg import make_multiagent_vec_env
+
+    check_env_kwargs(env_id, env_kwargs)
+    kwargs: dict[str, Any] = {}
+    if vec_env_class is SubprocVecEnv and n_envs > 1 and "num_cpus" in inspect.signature(make_multiagent_vec_env).parameters:
+        kwargs["num_cpus"] = min(n_envs, os.cpu_count() or 1)
+    return make_multiagent_vec_env(
+        MULTIAGENT_ENVS[env_id].env_fn(), n_envs=n_envs, seed=seed, env_kwargs=dict(env_kwargs or {}), **kwargs
+    )
+
+
+class MultiAgentExperimentManager(ExperimentManager):
+    """
+    RL Zoo's experiment manager (train and Optuna search) for multi-agent envs registered with
+    :func:`~sb3_maddpg.zoo.registry.register_multiagent_env`: it builds their VecEnv with ``make_multiagent_vec_env``
+    (``n_envs`` copies of the env, ``n_agents`` rows each) and writes one ``monitor.csv`` line per joint episode.
+    Everything else (hyperparameters, schedules, callbacks, checkpoints, evaluation, saving, Optuna) is RL Zoo's.
+    Single-agent Gymnasium envs go through RL Zoo's own code unchanged.
+    """
+
+    def read_hyperparameters(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        if not os.path.isfile(self.config) and (self.config.endswith(".yml") or self.config.endswith(".yaml")):
+            raise UsageError(f"config file {self.config} not found")
+        try:
+            hyperparams, saved_hyperparams = super().read_hyperparameters()
+        except ValueError as error:
+            # "Hyperparameters not found for <algo>-<env> in <config>"
+            raise UsageError(str(error)) from error
+        where = f"the entry {self.env_name.gym_id!r} of {self.config} (or -params)"
+        check_hyperparameter_keys(hyperparams, self.algo, where)
+        return hyperparams, saved_hyperparams
+
+    def _preprocess_hyperparams(
+        self, hyperparams: dict[str, Any]
+    ) -> tuple[dict[str, Any], Callable | None, list, Callable | None]:
+        try:
+            return super()._preprocess_hyperparams(hyperparams)
+        except (KeyError, SyntaxError, NameError) as error:
+            # a missing n_timesteps, or a policy_kwargs string that does not evaluate
+            raise UsageError(f"bad entry {self.env_name.gym_id!r} in {self.config}: {error!r}") from error
+
+    def _preprocess_action_noise(
+        self, hyperparams: dict[str, Any], saved_hyperparams: dict[str, Any], env: VecEnv
+    ) -> dict[str, Any]:
+        # RL Zoo knows "normal" and "ornstein-uhlenbeck"; "decaying-normal" is the report's schedule
+        # (noise_std decaying geometrically towards noise_final_std by noise_decay per VecEnv step).
+        if hyperparams.get("noise_type") == DECAYING_NOISE:
+            from sb3_maddpg.common.noise import DecayingGaussianNoise
+
+            hyperparams = dict(hyperparams)
+            del hyperparams["noise_type"]
+            n_actions = env.action_space.shape[0]
+            kwargs = {"sigma": hyperparams.pop("noise_std", 1.0), "final_sigma": hyperparams.pop("noise_final_std", 0.1)}
+            if "noise_decay" in hyperparams:
+                kwargs["decay"] = hyperparams.pop("noise_decay")
+            try:
+                hyperparams["action_noise"] = DecayingGaussianNoise(mean=np.zeros(n_actions), **kwargs)
+            except ValueError as error:
+                raise UsageError(f"bad noise settings in {self.config}: {error}") from error
+            print(f"Applying {DECAYING_NOISE} noise {hyperparams['action_noise']}")
+        for key in ("noise_final_std", "noise_decay"):
+            if key in hyperparams:
+                raise UsageError(f"{key} applies only with noise_type: {DECAYING_NOISE} (in {self.config})")
+        return super()._preprocess_action_noise(hyperparams, saved_hyperparams, env)
+
+    def create_callbacks(self) -> None:
+        super().create_callbacks()
+        if is_multiagent_env(self.env_name.gym_id):
+            # Episode-end coverage, fairness, energy... in TensorBoard next to SB3's scalars. Harmless if the
+            # algorithm adds its own: the logger averages the same values with record_mean.
+            self.callbacks.append(EpisodeMetricsCallback())
+            for callback in self.callbacks:
+                if isinstance(callback, EvalCallback):
+                    # evaluate_policy asks for a Monitor; without one it counts each agent row's return, which is
+                    # what it should report here (the mean return of an agent), so the warning is noise.
+                    callback.warn = False
+
+    def create_envs(self, n_envs: int, eval_env: bool = False, no_log: bool = False) -> VecEnv:
+        if not is_multiagent_env(self.env_name.gym_id):
+            return super().create_envs(n_envs, eval_env=eval_env, no_log=no_log)
+
+        # Do not log the eval env: it would write into the same file
+        log_dir = None if eval_env or no_log else self.save_path
+        env_kwargs = self.eval_env_kwargs if eval_env else self.env_kwargs
+        env = make_zoo_multiagent_vec_env(self.env_name.gym_id, n_envs, self.seed, env_kwargs, self.vec_env_class)
+        # Wrapped also without a file, so that training and evaluation envs have the same type (EvalCallback checks)
+        env = JointEpisodeMonitor(env, None if log_dir is None else os.path.join(log_dir, "monitor.csv"))
+        return _wrap_like_rl_zoo(
+            env, self.vec_env_wrapper, self.frame_stack, lambda venv: self._maybe_normalize(venv, eval_env)
+        )
+
+
+def _wrap_like_rl_zoo(
+    env: VecEnv,
+    vec_env_wrapper: Callable | None,
+    frame_stack: int | None,
+    normalize: Callable[[VecEnv], VecEnv],
+) -> VecEnv:
+    """
+    The optional VecEnv wrappers of an RL Zoo entry (``vec_env_wrapper``, ``normalize``, ``frame_stack``), in RL Zoo's
+    order, keeping the multi-agent attributes visible on the outer wrapper.
+
+    :param env: the multi-agent VecEnv
+    :param vec_env_wrapper: the entry's ``vec_env_wrapper``
+    :param frame_stack: the entry's ``frame_stack``
+    :param normalize: applies ``VecNormalize`` when the entry asks for it
+    :return: the wrapped VecEnv
+    """
+    inner = env
+    if vec_env_wrapper is not None:
+        env = vec_env_wrapper(env)
+    env = normalize(env)
+    if frame_stack:
+        env = VecFrameStack(env, frame_stack)
+    if env is not inner:
+        copy_multiagent_attributes(env, inner)
+    return env
+
+
+def create_multiagent_test_env(
+    env_id: str,
+    n_envs: int = 1,
+    stats_path: str | None = None,
+    seed: int = 0,
+    log_dir: str | None = None,
+    should_render: bool = True,
+    hyperparams: dict[str, Any] | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+    vec_env_cls: type[VecEnv] | None = None,
+    vec_env_kwargs: dict[str, Any] | None = None,
+    *,
+    _fallback: Callable[..., VecEnv] | None = None,
+) -> VecEnv:
+    """
+    Drop-in replacement of ``rl_zoo3.utils.create_test_env`` (used by RL Zoo's ``enjoy``) that builds registered
+    multi-agent envs with ``make_multiagent_vec_env``; other env ids go to RL Zoo's function.
+
+    :param env_id: the env id
+    :param n_envs: environment copies
+    :param stats_path: folder holding ``vecnormalize.pkl`` when the run normalised
+    :param seed: seed
+    :param log_dir: where to write a ``monitor.csv`` of the episodes
+    :param should_render: whether ``enjoy`` will render (``render_mode="human"`` where the env supports it)
+    :param hyperparams: the run's saved hyperparameters (wrappers, normalisation, frame stacking)
+    :param env_kwargs: constructor arguments
+    :param vec_env_cls: RL Zoo's VecEnv class choice
+    :param vec_env_kwargs: unused for multi-agent envs
+    :param _fallback: RL Zoo's original function, for single-agent env ids
+    :return: the VecEnv
+    """
+    if not is_multiagent_env(env_id):
+        if _fallback is None:
+            raise ValueError(f"{env_id} is not a registered multi-agent env")
+        return _fallback(
+            env_id,
+            n_envs=n_envs,
+            stats_path=stats_path,
+            seed=seed,
+            log_dir=log_dir,
+            should_render=should_render,
+            hyperparams=hyperparams,
+            env_kwargs=env_kwargs,
+            vec_env_cls=vec_env_cls,
+            vec_env_kwargs=vec_env_kwargs,
+        )
+    hyperparams = dict(hyperparams or {})
+    env_kwargs = deepcopy(env_kwargs or {})
+    render_modes = check_env_kwargs(env_id, {key: value for key, value in env_kwargs.items() if key != "render_mode"}).get(
+        "render_modes", []
+    )
+    # Only envs that draw on screen get render_mode="human"; the UAV env renders to arrays (see `evaluate` for GIFs).
+    can_render_human = should_render and "human" in render_modes
+    if can_render_human and "render_mode" not in env_kwargs:
+        env_kwargs["render_mode"] = "human"
+
+    env: VecEnv = make_zoo_multiagent_vec_env(env_id, n_envs, seed, env_kwargs)
+    if log_dir is not None:
+        env = JointEpisodeMonitor(env, os.path.join(log_dir, "monitor.csv"))
+
+    def normalize(venv: VecEnv) -> VecEnv:
+        if stats_path is None or not hyperparams.get("normalize", False):
+            return venv
+        path = os.path.join(stats_path, "vecnormalize.pkl")
+        if not os.path.exists(path):
+            raise UsageError(f"VecNormalize statistics {path} not found")
+        venv = VecNormalize.load(path, venv)
+        venv.training = False
+        venv.norm_reward = False
+        return venv
+
+    vec_env_wrapper = get_wrapper_class(hyperparams, "vec_env_wrapper") if "vec_env_wrapper" in hyperparams else None
+    frame_stack = hyperparams.get("frame_stack", 0) if stats_path is not None else 0
+    env = _wrap_like_rl_zoo(env, vec_env_wrapper, frame_stack, normalize)
+    return EnjoyVecEnv(env, can_render_human=can_render_human)

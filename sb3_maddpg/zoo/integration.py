@@ -1,0 +1,94 @@
+"""
+Register MADDPG and the multi-agent envs into RL Zoo's own machinery, then run its ``train``, ``enjoy`` and Optuna
+code unchanged.
+
+RL Zoo reads its algorithms from ``rl_zoo3.utils.ALGOS``, its samplers from ``rl_zoo3.hyperparams_opt``, builds
+training envs in ``ExperimentManager.create_envs`` and test envs with ``create_test_env``. :func:`register_with_rl_zoo`
+adds ``"maddpg"`` to the first two and points ``rl_zoo3.train`` and ``rl_zoo3.enjoy`` at the multi-agent versions of
+the last two; single-agent envs and algorithms keep working as before.
+"""
+
+import functools
+import importlib
+from typing import Any
+
+_REGISTERED = False
+
+
+def register_with_rl_zoo() -> None:
+    """
+    Make ``--algo maddpg`` and the multi-agent env ids available to RL Zoo (idempotent).
+    """
+    global _REGISTERED
+    if _REGISTERED:
+        return
+    import rl_zoo3.hyperparams_opt
+    import rl_zoo3.train
+    import rl_zoo3.utils
+
+    from sb3_maddpg import MADDPG
+    from sb3_maddpg.zoo import registry  # noqa: F401  (registers the env ids into Gymnasium's registry)
+    from sb3_maddpg.zoo.exp_manager import MultiAgentExperimentManager
+    from sb3_maddpg.zoo.hyperparams_opt import convert_maddpg_params, sample_maddpg_params
+
+    # One dict object shared by rl_zoo3.utils, .train, .enjoy and .exp_manager: adding a key is seen everywhere.
+    rl_zoo3.utils.ALGOS["maddpg"] = MADDPG
+    rl_zoo3.hyperparams_opt.HYPERPARAMS_SAMPLER["maddpg"] = sample_maddpg_params
+    rl_zoo3.hyperparams_opt.HYPERPARAMS_CONVERTER["maddpg"] = convert_maddpg_params
+    # `train()` looks ExperimentManager up in its module's globals when it runs.
+    rl_zoo3.train.ExperimentManager = MultiAgentExperimentManager  # type: ignore[misc]
+    _REGISTERED = True
+
+
+def _patch_enjoy() -> Any:
+    """
+    Import RL Zoo's enjoy module (it needs ``requests`` through its Hugging Face helpers, so only when used) and make
+    its ``create_test_env`` build multi-agent envs.
+
+    :return: the module
+    """
+    enjoy_module = importlib.import_module("rl_zoo3.enjoy")
+    from sb3_maddpg.zoo.exp_manager import create_multiagent_test_env
+
+    if not isinstance(enjoy_module.create_test_env, functools.partial):
+        import rl_zoo3.utils
+
+        enjoy_module.create_test_env = functools.partial(create_multiagent_test_env, _fallback=rl_zoo3.utils.create_test_env)
+    return enjoy_module
+
+
+def run_train(argv: list[str]) -> None:
+    """
+    RL Zoo's ``train`` (also ``-optimize``) with the given command-line arguments.
+
+    :param argv: arguments as for ``python -m rl_zoo3.train``
+    """
+    import sys
+
+    register_with_rl_zoo()
+    import rl_zoo3.train
+
+    saved = sys.argv
+    sys.argv = ["sb3_maddpg train", *argv]
+    try:
+        rl_zoo3.train.train()
+    finally:
+        sys.argv = saved
+
+
+def run_enjoy(argv: list[str]) -> None:
+    """
+    RL Zoo's ``enjoy`` with the given command-line arguments.
+
+    :param argv: arguments as for ``python -m rl_zoo3.enjoy``
+    """
+    import sys
+
+    register_with_rl_zoo()
+    enjoy_module = _patch_enjoy()
+    saved = sys.argv
+    sys.argv = ["sb3_maddpg enjoy", *argv]
+    try:
+        enjoy_module.enjoy()
+    finally:
+        sys.argv = saved

@@ -1,0 +1,162 @@
+"""
+The multi-agent environments the command line knows, by RL Zoo env id.
+
+RL Zoo looks env ids up in Gymnasium's registry (``--env`` is checked there, ``is_atari`` reads the entry point), but
+a PettingZoo ``ParallelEnv`` is not a ``gymnasium.Env``: :func:`register_multiagent_env` keeps the real constructor
+here and puts a placeholder into Gymnasium's registry whose ``gym.make`` explains how the env is built instead.
+"""
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import gymnasium as gym
+from pettingzoo import ParallelEnv
+
+
+class UsageError(ValueError):
+    """Bad input from the user (config, env id, env kwargs, paths): the command line prints it without a traceback."""
+
+
+@dataclass(frozen=True)
+class MultiAgentEnvSpec:
+    """
+    How to build one multi-agent env id.
+
+    :param env_id: the id used with ``--env`` and as the key of the YAML entries
+    :param entry_point: a ``ParallelEnv`` constructor, or its ``"module:attribute"`` path (imported when first used,
+        so optional packages such as ``mpe2`` are needed only by the envs that use them)
+    :param kwargs: default constructor arguments; the YAML's ``env_kwargs`` and ``--env-kwargs`` override them
+    """
+
+    env_id: str
+    entry_point: str | Callable[..., ParallelEnv]
+    kwargs: dict[str, Any] = field(default_factory=dict)
+
+    def constructor(self) -> Callable[..., ParallelEnv]:
+        """
+        :return: the ``ParallelEnv`` constructor
+        """
+        if callable(self.entry_point):
+            return self.entry_point
+        module_name, _, attribute = self.entry_point.partition(":")
+        try:
+            module = importlib.import_module(module_name)
+        except ImportError as error:
+            raise ImportError(
+                f"The env {self.env_id!r} needs the package of {module_name!r} ({error}); "
+                "install the project with `pip install -e '.[zoo]'`"
+            ) from error
+        return getattr(module, attribute)
+
+    def env_fn(self) -> Callable[..., ParallelEnv]:
+        """
+        :return: a constructor taking keyword arguments, with this spec's defaults applied first
+        """
+        return _EnvFn(self.constructor(), dict(self.kwargs))
+
+    def make(self, **kwargs: Any) -> ParallelEnv:
+        """
+        :param kwargs: constructor arguments over the spec's defaults
+        :return: a new ``ParallelEnv``
+        """
+        return self.env_fn()(**kwargs)
+
+
+class _EnvFn:
+    """A picklable constructor with default keyword arguments (SubprocVecEnv and SuperSuit's workers pickle it)."""
+
+    def __init__(self, constructor: Callable[..., ParallelEnv], defaults: dict[str, Any]) -> None:
+        self.constructor = constructor
+        self.defaults = defaults
+
+    def __call__(self, **kwargs: Any) -> ParallelEnv:
+        return self.constructor(**{**self.defaults, **kwargs})
+
+
+class _NotAGymEnv:
+    """Gymnasium entry point of a multi-agent env id: ``gym.make`` cannot build a PettingZoo env, so say how."""
+
+    def __init__(self, env_id: str) -> None:
+        self.env_id = env_id
+
+    def __call__(self, **kwargs: Any) -> gym.Env:
+        raise TypeError(
+            f"{self.env_id!r} is a PettingZoo multi-agent env, not a Gymnasium env: build it with "
+            f"sb3_maddpg.zoo.make_multiagent_env({self.env_id!r}) or sb3_maddpg.make_multiagent_vec_env"
+        )
+
+    def __repr__(self) -> str:
+        return f"sb3_maddpg.zoo.registry:{self.env_id}"
+
+
+MULTIAGENT_ENVS: dict[str, MultiAgentEnvSpec] = {}
+
+
+def register_multiagent_env(
+    env_id: str, entry_point: str | Callable[..., ParallelEnv], kwargs: dict[str, Any] | None = None
+) -> MultiAgentEnvSpec:
+    """
+    Make a PettingZoo ``ParallelEnv`` usable with ``--env env_id`` in ``train``, ``enjoy`` and ``optimize``.
+
+    Its agents must share one Box observation space and one Box action space (what MADDPG's VecEnv needs).
+    Registering an id again replaces it.
+
+    :param env_id: the id, also the key of its YAML entry
+    :param entry_point: the ``ParallelEnv`` constructor or its ``"module:attribute"`` path
+    :param kwargs: default constructor arguments
+    :return: the spec
+    """
+    spec = MultiAgentEnvSpec(env_id, entry_point, dict(kwargs or {}))
+    MULTIAGENT_ENVS[env_id] = spec
+    if env_id not in gym.registry:
+        gym.register(env_id, entry_point=_NotAGymEnv(env_id))
+    return spec
+
+
+def is_multiagent_env(env_id: str) -> bool:
+    """
+    :param env_id: an env id
+    :return: whether it was registered with :func:`register_multiagent_env`
+    """
+    return env_id in MULTIAGENT_ENVS
+
+
+def make_multiagent_env(env_id: str, **kwargs: Any) -> ParallelEnv:
+    """
+    Build a registered multi-agent env.
+
+    :param env_id: a registered id (``uav_coverage_v0``, ``uav_coverage_fast_v0``, ``simple_spread_v3``, ...)
+    :param kwargs: constructor arguments over the registered defaults
+    :return: the ``ParallelEnv``
+    """
+    if env_id not in MULTIAGENT_ENVS:
+        raise ValueError(f"Unknown multi-agent env {env_id!r}; registered: {', '.join(sorted(MULTIAGENT_ENVS))}")
+    return MULTIAGENT_ENVS[env_id].make(**kwargs)
+
+
+def check_env_kwargs(env_id: str, env_kwargs: dict[str, Any] | None, flag: str = "env kwargs") -> dict[str, Any]:
+    """
+    Build the env once with these arguments and turn a ``TypeError``/``ValueError`` into a :class:`UsageError`
+    (an unknown argument, a value the env rejects).
+
+    :param env_id: a registered multi-agent env id
+    :param env_kwargs: the arguments
+    :param flag: where the arguments come from, for the message
+    :return: the env's ``metadata``
+    """
+    try:
+        env = make_multiagent_env(env_id, **(env_kwargs or {}))
+    except (TypeError, ValueError) as error:
+        raise UsageError(f"{flag}: bad arguments {env_kwargs!r} for {env_id}: {error}") from error
+    metadata = dict(getattr(env, "metadata", {}))
+    env.close()
+    return metadata
+
+
+# The report's environment, its cheap variant (1 pixel per cell instead of 5: about 25 times fewer pixels for the
+# CNN) and an MPE2 task with continuous actions, to show nothing is tied to the UAV env.
+register_multiagent_env("uav_coverage_v0", "sb3_maddpg_envs.uav_coverage_v0:parallel_env")
+register_multiagent_env("uav_coverage_fast_v0", "sb3_maddpg_envs.uav_coverage_v0:parallel_env", {"obs_size": 16})
+register_multiagent_env("simple_spread_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": True})

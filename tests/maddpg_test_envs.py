@@ -1,0 +1,130 @@
+"""Tiny PettingZoo ParallelEnvs for the algorithm's tests (no dependency on the project's own environment)."""
+
+import functools
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+
+# Tiny networks gain nothing from intra-op threads, and on a small shared CI machine each parallel region can wait
+# milliseconds for a busy core: one thread keeps these tests fast.
+th.set_num_threads(1)
+
+
+class TargetReachEnv(ParallelEnv):
+    """
+    Cooperative vector-observation task. Each agent i sits at p_i in [-1, 1]^2 and has a target g_i; it sees
+    (p_i, g_i) and moves by 0.3 * a_i with a_i in [-1, 1]^2 (positions clipped to the square). All agents receive
+    the team reward -mean_i ||p_i - g_i|| after moving. Episodes are truncated after ``max_cycles`` steps;
+    with ``terminate_on_success`` they terminate once every agent is within 0.1 of its target.
+
+    :param n_agents: number of agents
+    :param max_cycles: episode length
+    :param terminate_on_success: end the episode (termination) when all agents reached their targets
+    :param action_low: lower bound of the action box (the box is rescaled to [-1, 1] internally)
+    """
+
+    metadata = {"render_modes": [], "name": "target_reach_v0"}
+
+    def __init__(self, n_agents: int = 2, max_cycles: int = 5, terminate_on_success: bool = False, action_low: float = -1.0):
+        self.possible_agents = [f"agent_{i}" for i in range(n_agents)]
+        self.agents = []
+        self.max_cycles = max_cycles
+        self.terminate_on_success = terminate_on_success
+        self.action_low = action_low
+        self.render_mode = None
+        self._rng = np.random.default_rng()
+
+    @functools.lru_cache(maxsize=None)
+    def observation_space(self, agent):
+        return spaces.Box(-1.0, 1.0, (4,), np.float32)
+
+    @functools.lru_cache(maxsize=None)
+    def action_space(self, agent):
+        return spaces.Box(self.action_low, 1.0, (2,), np.float32)
+
+    def _obs(self):
+        return {a: np.concatenate([self.pos[i], self.goal[i]]).astype(np.float32) for i, a in enumerate(self.agents)}
+
+    def reset(self, seed=None, options=None):
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+        self.agents = list(self.possible_agents)
+        n = len(self.agents)
+        self.pos = self._rng.uniform(-1, 1, (n, 2))
+        self.goal = self._rng.uniform(-1, 1, (n, 2))
+        self.t = 0
+        return self._obs(), {a: {} for a in self.agents}
+
+    def step(self, actions):
+        act = np.stack([np.asarray(actions[a], dtype=np.float64) for a in self.agents])
+        act = np.clip(act, self.action_low, 1.0)
+        # rescale [low, 1] -> [-1, 1]
+        act = 2.0 * (act - self.action_low) / (1.0 - self.action_low) - 1.0
+        self.pos = np.clip(self.pos + 0.3 * act, -1, 1)
+        self.t += 1
+        dist = np.linalg.norm(self.pos - self.goal, axis=1)
+        reward = float(-dist.mean())
+        success = self.terminate_on_success and bool((dist < 0.1).all())
+        truncated = self.t >= self.max_cycles and not success
+        obs = self._obs()
+        rewards = {a: reward for a in self.agents}
+        terms = {a: success for a in self.agents}
+        truncs = {a: truncated for a in self.agents}
+        infos = {a: {"distance": float(dist[i])} for i, a in enumerate(self.agents)}
+        if success or truncated:
+            self.agents = []
+        return obs, rewards, terms, truncs, infos
+
+
+class CountingImageEnv(ParallelEnv):
+    """
+    Image-observation env whose observations encode (episode step, agent) so tests can check what was stored:
+    every pixel of agent i's observation at step t equals ``(10 * t + i) % 256`` (uint8, shape (3, size, size)).
+    Every info holds ``t``. Rewards are ``t + 0.1 * i``; episodes terminate after ``episode_length`` steps (or truncate, if ``truncate``).
+
+    :param n_agents: number of agents
+    :param size: image side
+    :param episode_length: steps per episode
+    :param truncate: end episodes by truncation instead of termination
+    """
+
+    metadata = {"render_modes": [], "name": "counting_image_v0"}
+
+    def __init__(self, n_agents: int = 2, size: int = 16, episode_length: int = 4, truncate: bool = False):
+        self.possible_agents = [f"agent_{i}" for i in range(n_agents)]
+        self.agents = []
+        self.size = size
+        self.episode_length = episode_length
+        self.truncate = truncate
+        self.render_mode = None
+        self.t = 0
+
+    @functools.lru_cache(maxsize=None)
+    def observation_space(self, agent):
+        return spaces.Box(0, 255, (3, self.size, self.size), np.uint8)
+
+    @functools.lru_cache(maxsize=None)
+    def action_space(self, agent):
+        return spaces.Box(0.0, 1.0, (2,), np.float32)
+
+    def _obs(self):
+        return {a: np.full((3, self.size, self.size), (10 * self.t + i) % 256, np.uint8) for i, a in enumerate(self.agents)}
+
+    def reset(self, seed=None, options=None):
+        self.agents = list(self.possible_agents)
+        self.t = 0
+        return self._obs(), {a: {"t": 0} for a in self.agents}
+
+    def step(self, actions):
+        self.t += 1
+        done = self.t >= self.episode_length
+        obs = self._obs()
+        rewards = {a: self.t + 0.1 * i for i, a in enumerate(self.agents)}
+        terms = {a: done and not self.truncate for a in self.agents}
+        truncs = {a: done and self.truncate for a in self.agents}
+        infos = {a: {"t": self.t} for a in self.agents}
+        if done:
+            self.agents = []
+        return obs, rewards, terms, truncs, infos

@@ -1,0 +1,111 @@
+"""EpisodeMetricsCallback: once per joint episode, team sums of per-agent counts, TensorBoard scalars of a real run."""
+
+import glob
+
+import numpy as np
+import pytest
+from stable_baselines3.common.logger import Logger
+
+from sb3_maddpg.common.callbacks import EpisodeMetricsCallback, joint_episode_metrics
+
+
+def agent_info(coverage: float, wall_hits: int = 0, disconnections: int = 0) -> dict:
+    return {
+        "coverage": coverage,
+        "fairness": 0.5,
+        "energy": 0.25,
+        "energy_efficiency": 1.0,
+        "wall_hits": wall_hits,
+        "disconnections": disconnections,
+    }
+
+
+class FakeModel:
+    """What the callback touches: the logger, the timestep counter and n_agents."""
+
+    def __init__(self, n_agents: int) -> None:
+        self.n_agents = n_agents
+        self.num_timesteps = 0
+        self.logger = Logger(folder=None, output_formats=[])
+
+    def get_env(self) -> None:
+        return None
+
+
+def make_callback(n_agents: int) -> tuple[EpisodeMetricsCallback, FakeModel]:
+    model = FakeModel(n_agents)
+    callback = EpisodeMetricsCallback()
+    callback.init_callback(model)  # type: ignore[arg-type]
+    return callback, model
+
+
+def step(callback: EpisodeMetricsCallback, dones: list[bool], infos: list[dict]) -> None:
+    callback.update_locals({"dones": np.array(dones), "infos": infos})
+    assert callback.on_step()
+
+
+def test_joint_episode_metrics_sums_per_agent_counts() -> None:
+    infos = [agent_info(0.3, 1, 0), agent_info(0.3, 2, 5), agent_info(0.9, 7, 7), agent_info(0.9, 0, 1)]
+    metrics = joint_episode_metrics(infos, first_row=0, n_agents=2)
+    assert metrics["coverage"] == pytest.approx(0.3)
+    assert metrics["wall_hits"] == 3
+    assert metrics["disconnections"] == 5
+    assert joint_episode_metrics([{}, {}], 0, 2) == {}
+
+
+def test_logs_once_per_joint_episode_and_averages_between_dumps() -> None:
+    callback, model = make_callback(n_agents=3)
+    # two copies of 3 agents; copy 0 ends (coverage 0.2), then copy 1 ends (coverage 0.6)
+    rows = [agent_info(0.2, 1)] * 3 + [agent_info(0.6, 0)] * 3
+    step(callback, [False] * 6, rows)
+    assert callback.n_episodes == 0
+    step(callback, [True] * 3 + [False] * 3, rows)
+    assert callback.n_episodes == 1
+    assert model.logger.name_to_value["rollout/coverage"] == pytest.approx(0.2)
+    assert model.logger.name_to_value["rollout/wall_hits"] == 3
+    step(callback, [False] * 3 + [True] * 3, rows)
+    assert callback.n_episodes == 2
+    assert model.logger.name_to_value["rollout/coverage"] == pytest.approx(0.4)
+    assert model.logger.name_to_value["rollout/fairness"] == pytest.approx(0.5)
+
+
+def test_envs_without_metrics_log_nothing() -> None:
+    callback, model = make_callback(n_agents=2)
+    step(callback, [True, True], [{"terminal_observation": np.zeros(3)}, {}])
+    assert callback.n_episodes == 0
+    assert not any(key.startswith("rollout/") for key in model.logger.name_to_value)
+
+
+def test_short_run_writes_coverage_and_fairness_to_tensorboard(tmp_path) -> None:
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    from sb3_maddpg import MADDPG, make_multiagent_vec_env
+    from sb3_maddpg_envs import uav_coverage_v0
+
+    env_kwargs = dict(n_uavs=2, obs_size=16, max_cycles=10)
+    venv = make_multiagent_vec_env(uav_coverage_v0.parallel_env, n_envs=1, seed=0, env_kwargs=env_kwargs)
+    model = MADDPG(
+        "CnnPolicy",
+        venv,
+        buffer_size=200,
+        learning_starts=40,
+        batch_size=8,
+        train_freq=10,
+        policy_kwargs=dict(n_quantiles=5, net_arch=[16]),
+        tensorboard_log=str(tmp_path),
+        seed=0,
+    )
+    model.learn(60, callback=EpisodeMetricsCallback())
+
+    events = glob.glob(str(tmp_path / "**" / "events.out.tfevents.*"), recursive=True)
+    assert events
+    accumulator = EventAccumulator(events[0])
+    accumulator.Reload()
+    tags = accumulator.Tags()["scalars"]
+    for tag in ("rollout/coverage", "rollout/fairness", "rollout/energy", "rollout/energy_efficiency"):
+        assert tag in tags
+    coverage = [event.value for event in accumulator.Scalars("rollout/coverage")]
+    fairness = [event.value for event in accumulator.Scalars("rollout/fairness")]
+    # Two UAVs covering a 16 x 16 lattice for 10 steps cover something: the episode-end values, not the reset ones.
+    assert all(0.0 < value <= 1.0 for value in coverage)
+    assert all(0.0 < value <= 1.0 for value in fairness)

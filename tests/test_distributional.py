@@ -1,0 +1,99 @@
+"""Quantile Huber loss, CVaR and quantile midpoints against hand-computed values."""
+
+import pytest
+import torch as th
+
+from sb3_maddpg.common.distributional import cvar, cvar_n_lowest, quantile_huber_loss, quantile_midpoints
+
+
+def test_quantile_midpoints():
+    assert th.allclose(quantile_midpoints(4), th.tensor([0.125, 0.375, 0.625, 0.875]))
+    assert th.allclose(quantile_midpoints(1), th.tensor([0.5]))
+    with pytest.raises(ValueError, match="n_quantiles"):
+        quantile_midpoints(0)
+
+
+def test_cvar_hand_computed():
+    q = th.tensor([3.0, 1.0, 2.0, 4.0])
+    # ceil(0.5 * 4) = 2 lowest: (1 + 2) / 2
+    assert cvar(q, 0.5).item() == pytest.approx(1.5)
+    # ceil(0.26 * 4) = 2
+    assert cvar(q, 0.26).item() == pytest.approx(1.5)
+    # ceil(0.25 * 4) = 1: the minimum
+    assert cvar(q, 0.25).item() == pytest.approx(1.0)
+    assert cvar(q, 0.01).item() == pytest.approx(1.0)
+    # ceil(0.75 * 4) = 3
+    assert cvar(q, 0.75).item() == pytest.approx(2.0)
+
+
+def test_cvar_alpha_one_is_mean_and_batched():
+    q = th.randn(5, 3, 7)
+    assert th.allclose(cvar(q, 1.0), q.mean(dim=-1))
+    # batched over leading dims, each row separately
+    expected = th.sort(q, dim=-1).values[..., :4].mean(dim=-1)  # ceil(0.5 * 7) = 4
+    assert th.allclose(cvar(q, 0.5), expected)
+
+
+def test_cvar_count_is_not_fooled_by_float_rounding():
+    # 0.3 * 10 = 3.0000000000000004 in floating point; CVaR must average 3 values, not 4
+    assert cvar_n_lowest(10, 0.3) == 3
+    assert cvar(th.arange(10.0), 0.3).item() == pytest.approx(1.0)
+    assert cvar_n_lowest(50, 0.5) == 25
+    assert cvar_n_lowest(1, 0.1) == 1
+    with pytest.raises(ValueError, match="alpha"):
+        cvar_n_lowest(10, 0.0)
+    with pytest.raises(ValueError, match="alpha"):
+        cvar_n_lowest(10, 1.5)
+
+
+def test_cvar_gradient_reaches_only_the_lowest_quantiles():
+    q = th.tensor([3.0, 1.0, 2.0, 4.0], requires_grad=True)
+    cvar(q, 0.5).backward()
+    assert th.allclose(q.grad, th.tensor([0.0, 0.5, 0.5, 0.0]))
+
+
+def test_quantile_huber_loss_single_quantile():
+    # n = 1, tau = 0.5, z = 0
+    z = th.zeros(1, 1)
+    # delta = 2 > kappa: huber = 2 - 0.5 = 1.5, weight |0.5 - 0| = 0.5
+    assert quantile_huber_loss(z, th.tensor([[2.0]])).item() == pytest.approx(0.75)
+    # delta = -0.5: huber = 0.125, weight |0.5 - 1| = 0.5
+    assert quantile_huber_loss(z, th.tensor([[-0.5]])).item() == pytest.approx(0.0625)
+
+
+def test_quantile_huber_loss_two_quantiles_hand_computed():
+    current = th.tensor([[0.0, 1.0]])  # taus 0.25, 0.75
+    target = th.tensor([[0.5, 3.0]])
+    # j=0: delta [0.5, 3]  -> huber [0.125, 2.5], weight 0.25 each -> mean 0.328125
+    # j=1: delta [-0.5, 2] -> huber [0.125, 1.5], weights [0.25, 0.75] -> mean 0.578125
+    loss = quantile_huber_loss(current, target)
+    assert loss.shape == (1,)
+    assert loss.item() == pytest.approx(0.90625)
+
+
+def test_quantile_huber_loss_keeps_leading_dims_and_checks_shapes():
+    loss = quantile_huber_loss(th.randn(8, 3, 5), th.randn(8, 3, 7))
+    assert loss.shape == (8, 3)
+    with pytest.raises(ValueError, match="leading dimensions"):
+        quantile_huber_loss(th.randn(8, 3, 5), th.randn(8, 2, 5))
+
+
+def test_quantile_huber_loss_matches_sb3_contrib():
+    utils = pytest.importorskip("sb3_contrib.common.utils")
+    current, target = th.randn(16, 4, 10), th.randn(16, 4, 10) * 3
+    ours = quantile_huber_loss(current, target).mean()
+    theirs = utils.quantile_huber_loss(current, target, sum_over_quantiles=True)
+    assert ours.item() == pytest.approx(theirs.item(), rel=1e-5)
+
+
+def test_quantile_regression_recovers_midpoint_quantiles():
+    # Minimising the loss towards samples of U{0..99} puts the 4 quantiles near 12.5, 37.5, 62.5, 87.5 (percentiles)
+    th.manual_seed(0)
+    samples = th.arange(100.0).view(1, 100)
+    z = th.zeros(1, 4, requires_grad=True)
+    opt = th.optim.Adam([z], lr=1.0)
+    for _ in range(1500):
+        opt.zero_grad()
+        quantile_huber_loss(z, samples).sum().backward()
+        opt.step()
+    assert th.allclose(z.detach(), th.tensor([[12.5, 37.5, 62.0, 87.0]]), atol=1.5)

@@ -1,0 +1,93 @@
+"""Bad input is refused where it enters, with a message naming what is accepted."""
+
+import functools
+
+import numpy as np
+import pytest
+import supersuit as ss
+from gymnasium import spaces
+from maddpg_test_envs import TargetReachEnv
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+from sb3_maddpg import MADDPG, make_multiagent_vec_env
+
+
+class DiscreteActionEnv(TargetReachEnv):
+    @functools.lru_cache(maxsize=None)
+    def action_space(self, agent):
+        return spaces.Discrete(4)
+
+
+class MixedActionEnv(TargetReachEnv):
+    @functools.lru_cache(maxsize=None)
+    def action_space(self, agent):
+        return spaces.Box(-1.0, 1.0, (2 if agent == "agent_0" else 3,), np.float32)
+
+
+def raw_supersuit_env(env, n_envs=1):
+    """SuperSuit's own VecEnv: no n_agents attribute, SuperSuit's checks only."""
+    return ss.concat_vec_envs_v1(ss.pettingzoo_env_to_vec_env_v1(env), n_envs, base_class="stable_baselines3")
+
+
+def test_discrete_action_space():
+    with pytest.raises(TypeError, match="Box"):
+        make_multiagent_vec_env(DiscreteActionEnv)
+    with pytest.raises(TypeError, match=r"Box \(continuous\) action spaces"):
+        MADDPG("MlpPolicy", raw_supersuit_env(DiscreteActionEnv()), n_agents=2)
+
+
+def test_agents_with_different_spaces():
+    with pytest.raises(ValueError, match="share one observation space and one action space"):
+        make_multiagent_vec_env(MixedActionEnv)
+
+
+def test_rows_not_a_multiple_of_agents():
+    venv = raw_supersuit_env(TargetReachEnv(n_agents=3))
+    with pytest.raises(ValueError, match="not a multiple of n_agents=2"):
+        MADDPG("MlpPolicy", venv, n_agents=2)
+    # a VecEnv that says it has 3 agents cannot be used with n_agents=2
+    with pytest.raises(ValueError, match="disagrees"):
+        MADDPG("MlpPolicy", make_multiagent_vec_env(TargetReachEnv, env_kwargs=dict(n_agents=3)), n_agents=2)
+    # nor can predict take a partial joint observation
+    model = MADDPG("MlpPolicy", make_multiagent_vec_env(TargetReachEnv, env_kwargs=dict(n_agents=3)))
+    with pytest.raises(ValueError, match="multiple of n_agents=3"):
+        model.predict(np.zeros((4, 4), np.float32))
+
+
+def test_number_of_agents_is_required():
+    venv = raw_supersuit_env(TargetReachEnv(n_agents=2))
+    with pytest.raises(ValueError, match="n_agents"):
+        MADDPG("MlpPolicy", venv)
+    # with n_agents given, SuperSuit's VecEnv works directly
+    model = MADDPG("MlpPolicy", venv, n_agents=2, buffer_size=100, learning_starts=10, batch_size=8)
+    model.learn(20)
+    with pytest.raises(ValueError, match="n_agents must be an integer >= 1"):
+        MADDPG("MlpPolicy", venv, n_agents=0)
+
+
+def test_parallel_env_and_single_agent_env_are_refused():
+    with pytest.raises(TypeError, match="make_multiagent_vec_env"):
+        MADDPG("MlpPolicy", TargetReachEnv())
+    single = DummyVecEnv([lambda: __import__("gymnasium").make("Pendulum-v1")])
+    with pytest.raises(ValueError, match="number of agents"):
+        MADDPG("MlpPolicy", single)
+
+
+@pytest.mark.parametrize("alpha", [0.0, -0.5, 1.5, float("nan"), True, "0.5"])
+def test_cvar_alpha_outside_unit_interval(alpha):
+    venv = make_multiagent_vec_env(TargetReachEnv)
+    with pytest.raises(ValueError, match=r"cvar_alpha must be a number in \(0, 1\]"):
+        MADDPG("MlpPolicy", venv, cvar_alpha=alpha)
+
+
+@pytest.mark.parametrize("n_quantiles", [0, -3, 2.5])
+def test_n_quantiles_below_one(n_quantiles):
+    venv = make_multiagent_vec_env(TargetReachEnv)
+    with pytest.raises(ValueError, match="n_quantiles must be an integer >= 1"):
+        MADDPG("MlpPolicy", venv, policy_kwargs=dict(n_quantiles=n_quantiles))
+
+
+def test_cnn_policy_on_vector_observations():
+    venv = make_multiagent_vec_env(TargetReachEnv)
+    with pytest.raises(ValueError, match="channel-first image"):
+        MADDPG("CnnPolicy", venv)

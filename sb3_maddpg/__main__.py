@@ -209,9 +209,8 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         elif "://" not in storage and not storage.endswith(".log"):
             # A plain file name means a local SQLite database.
             Path(storage).parent.mkdir(parents=True, exist_ok=True)
-            index = argv.index("--storage") if "--storage" in argv else None
-            if index is not None:
-                argv[index + 1] = f"sqlite:///{storage}"
+            argv = [f"--storage=sqlite:///{storage}" if arg == f"--storage={storage}" else arg for arg in argv]
+            argv = [f"sqlite:///{storage}" if i > 0 and argv[i - 1] == "--storage" else arg for i, arg in enumerate(argv)]
         if args.study_name is None:
             argv += ["--study-name", f"{args.algo}_{args.env}"]
     return argv

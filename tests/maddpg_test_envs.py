@@ -1,7 +1,5 @@
 """Tiny PettingZoo ParallelEnvs for the algorithm's tests (no dependency on the project's own environment)."""
 
-import functools
-
 import numpy as np
 import torch as th
 from gymnasium import spaces
@@ -36,11 +34,9 @@ class TargetReachEnv(ParallelEnv):
         self.render_mode = None
         self._rng = np.random.default_rng()
 
-    @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
         return spaces.Box(-1.0, 1.0, (4,), np.float32)
 
-    @functools.lru_cache(maxsize=None)
     def action_space(self, agent):
         return spaces.Box(self.action_low, 1.0, (2,), np.float32)
 
@@ -82,7 +78,8 @@ class CountingImageEnv(ParallelEnv):
     """
     Image-observation env whose observations encode (episode step, agent) so tests can check what was stored:
     every pixel of agent i's observation at step t equals ``(10 * t + i) % 256`` (uint8, shape (3, size, size)).
-    Every info holds ``t``. Rewards are ``t + 0.1 * i``; episodes terminate after ``episode_length`` steps (or truncate, if ``truncate``).
+    Every info holds ``t``. Rewards are ``t + 0.1 * i``; episodes terminate after ``episode_length`` steps
+    (or are truncated, with ``truncate=True``).
 
     :param n_agents: number of agents
     :param size: image side
@@ -101,11 +98,9 @@ class CountingImageEnv(ParallelEnv):
         self.render_mode = None
         self.t = 0
 
-    @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
         return spaces.Box(0, 255, (3, self.size, self.size), np.uint8)
 
-    @functools.lru_cache(maxsize=None)
     def action_space(self, agent):
         return spaces.Box(0.0, 1.0, (2,), np.float32)
 

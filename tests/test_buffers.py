@@ -38,19 +38,23 @@ def fill(buffer: MultiAgentReplayBuffer, n_steps: int, episode_lengths=(3, 4, 5)
         obs = np.stack([encode_obs(t, c, i, False) for c in range(N_COPIES) for i in range(N_AGENTS)])
         ep_step += 1
         done_copy = ep_step >= np.array(episode_lengths)
-        next_obs = np.stack(
-            [encode_obs(t + 1, c, i, bool(done_copy[c])) for c in range(N_COPIES) for i in range(N_AGENTS)]
-        )
+        next_obs = np.stack([encode_obs(t + 1, c, i, bool(done_copy[c])) for c in range(N_COPIES) for i in range(N_AGENTS)])
         actions = np.array([[t, 10 * c + i] for c in range(N_COPIES) for i in range(N_AGENTS)], np.float32)
         rewards = np.array([1000 * t + 10 * c + i for c in range(N_COPIES) for i in range(N_AGENTS)], np.float32)
         dones = np.repeat(done_copy, N_AGENTS)
-        infos = [{"TimeLimit.truncated": bool(done_copy[c] and c == truncate_copy)} for c in range(N_COPIES) for _ in range(N_AGENTS)]
+        infos = [
+            {"TimeLimit.truncated": bool(done_copy[c] and c == truncate_copy)}
+            for c in range(N_COPIES)
+            for _ in range(N_AGENTS)
+        ]
         buffer.add(obs, next_obs, actions, rewards, dones, infos)
         ep_step[done_copy] = 0
 
 
 def make_buffer(buffer_size: int = 30) -> MultiAgentReplayBuffer:
-    return MultiAgentReplayBuffer(buffer_size, OBS_SPACE, ACT_SPACE, device="cpu", n_envs=N_COPIES * N_AGENTS, n_agents=N_AGENTS)
+    return MultiAgentReplayBuffer(
+        buffer_size, OBS_SPACE, ACT_SPACE, device="cpu", n_envs=N_COPIES * N_AGENTS, n_agents=N_AGENTS
+    )
 
 
 def check_samples(buffer: MultiAgentReplayBuffer, n_steps: int, episode_lengths=(3, 4, 5), truncate_copy: int = 1):
@@ -138,7 +142,7 @@ def test_save_and_load_gives_the_same_samples(tmp_path):
     a = buffer.sample(64)
     np.random.seed(3)
     b = loaded.sample(64)
-    for x, y in zip(a, b):
+    for x, y in zip(a, b, strict=True):
         assert th.equal(x, y)
     # and it keeps working after loading
     fill(loaded, 40)

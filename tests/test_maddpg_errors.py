@@ -1,7 +1,5 @@
 """Bad input is refused where it enters, with a message naming what is accepted."""
 
-import functools
-
 import numpy as np
 import pytest
 import supersuit as ss
@@ -13,13 +11,11 @@ from sb3_maddpg import MADDPG, make_multiagent_vec_env
 
 
 class DiscreteActionEnv(TargetReachEnv):
-    @functools.lru_cache(maxsize=None)
     def action_space(self, agent):
         return spaces.Discrete(4)
 
 
 class MixedActionEnv(TargetReachEnv):
-    @functools.lru_cache(maxsize=None)
     def action_space(self, agent):
         return spaces.Box(-1.0, 1.0, (2 if agent == "agent_0" else 3,), np.float32)
 

@@ -104,7 +104,7 @@ def test_actor_loss_of_agent_i_moves_only_actor_i(policy):
     for i in range(n):
         grads = th.autograd.grad(actor_loss[i], params, retain_graph=True, allow_unused=True)
         moved = th.zeros(n)
-        for p, g in zip(params, grads):
+        for g in grads:
             if g is not None:
                 # stacked parameters: the first dimension is agent-major (N, ...) or (N * k, ...)
                 moved += g.reshape(n, -1).abs().sum(dim=1)
@@ -141,9 +141,12 @@ def test_single_quantile_with_alpha_one_is_classic_maddpg():
     loss, current, features = model.critic_loss(batch)
     with th.no_grad():
         # classic TD target y_i = r_i + gamma (1 - d) Q_i'(o', mu'(o'))
-        y = batch.rewards + model.gamma * (1 - batch.dones) * model.critic_target(
-            batch.next_observations, model.actor_target(batch.next_observations)
-        )[..., 0]
+        y = (
+            batch.rewards
+            + model.gamma
+            * (1 - batch.dones)
+            * model.critic_target(batch.next_observations, model.actor_target(batch.next_observations))[..., 0]
+        )
     delta = y - current[..., 0]
     # one quantile at tau = 0.5: half the Huber loss of the TD error (gradient 0.5 * delta inside |delta| <= 1)
     huber = th.where(delta.abs() <= 1, 0.5 * delta**2, delta.abs() - 0.5)
@@ -200,7 +203,7 @@ def test_batchnorm_eval_when_acting_train_in_updates_and_copied_to_targets():
         (model.actor_batch_norm_stats, model.actor_batch_norm_stats_target),
     ):
         assert len(online) == len(target) == 2  # running_mean and running_var
-        for a, b in zip(online, target):
+        for a, b in zip(online, target, strict=True):
             assert th.equal(a, b)
         assert not th.all(online[0] == 0)
 

@@ -1,7 +1,5 @@
 """make_multiagent_vec_env: row layout, seeding, truncation flags, terminal observations, episode statistics."""
 
-import functools
-
 import numpy as np
 import pytest
 from gymnasium import spaces
@@ -70,13 +68,11 @@ def test_episode_end_infos(truncate):
 
 
 class MixedSpacesEnv(TargetReachEnv):
-    @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
         return spaces.Box(-1.0, 1.0, (4 if agent == "agent_0" else 5,), np.float32)
 
 
 class DiscreteActionEnv(TargetReachEnv):
-    @functools.lru_cache(maxsize=None)
     def action_space(self, agent):
         return spaces.Discrete(4)
 

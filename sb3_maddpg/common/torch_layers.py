@@ -206,7 +206,7 @@ class BatchedMlp(nn.Module):
         self.n_models = n_models
         layers: list[nn.Module] = []
         sizes = [input_dim, *net_arch]
-        for in_size, out_size in zip(sizes[:-1], sizes[1:]):
+        for in_size, out_size in zip(sizes[:-1], sizes[1:], strict=True):
             layers += [BatchedLinear(n_models, in_size, out_size), activation_fn()]
         layers.append(BatchedLinear(n_models, sizes[-1], output_dim))
         if squash_output:

@@ -223,13 +223,17 @@ class MADDPGPolicy(BasePolicy):
         self.actor_target = MultiAgentActor(**self.actor_kwargs)
         self.actor_target.load_state_dict(self.actor.state_dict())
         self.actor.optimizer = self.optimizer_class(  # type: ignore[assignment]
-            self.actor.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs  # type: ignore[call-arg]
+            self.actor.parameters(),
+            lr=lr_schedule(1),
+            **self.optimizer_kwargs,  # type: ignore[call-arg]
         )
         self.critic = MultiAgentQuantileCritic(**self.critic_kwargs)
         self.critic_target = MultiAgentQuantileCritic(**self.critic_kwargs)
         self.critic_target.load_state_dict(self.critic.state_dict())
         self.critic.optimizer = self.optimizer_class(  # type: ignore[assignment]
-            self.critic.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs  # type: ignore[call-arg]
+            self.critic.parameters(),
+            lr=lr_schedule(1),
+            **self.optimizer_kwargs,  # type: ignore[call-arg]
         )
         # Target networks always use their (copied) BatchNorm running statistics
         self.actor_target.train(False)

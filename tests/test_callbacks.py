@@ -109,3 +109,9 @@ def test_short_run_writes_coverage_and_fairness_to_tensorboard(tmp_path) -> None
     # Two UAVs covering a 16 x 16 lattice for 10 steps cover something: the episode-end values, not the reset ones.
     assert all(0.0 < value <= 1.0 for value in coverage)
     assert all(0.0 < value <= 1.0 for value in fairness)
+
+    # `plot` falls back on these scalars when a run has no monitor.csv (runs started from Python)
+    from sb3_maddpg.evaluation import plot_training_logs
+
+    paths = plot_training_logs(tmp_path, tmp_path / "figures")
+    assert all(path.stat().st_size > 0 for path in paths)

@@ -125,6 +125,10 @@ def test_save_load_identical_actions_and_no_buffer_without_env(tmp_path):
     loaded = MADDPG.load(tmp_path / "model.zip", env=venv)
     loaded.learn(20, reset_num_timesteps=False)
     assert loaded.replay_buffer is not None and loaded.num_timesteps == 170
+    # also with another number of copies
+    loaded = MADDPG.load(tmp_path / "model.zip", env=image_env(n_envs=3))
+    loaded.learn(30)
+    assert loaded.n_copies == 3 and loaded.num_timesteps == 30
     # set_env after an env-less load works too
     acting = MADDPG.load(tmp_path / "model.zip")
     acting.set_env(venv)

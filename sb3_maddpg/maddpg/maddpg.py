@@ -1,5 +1,6 @@
 """MADDPG with centralised quantile critics and a CVaR actor objective, as an SB3 off-policy algorithm."""
 
+from numbers import Integral, Real
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -8,7 +9,7 @@ from gymnasium import spaces
 from pettingzoo.utils.env import ParallelEnv
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ConvertCallback, ProgressBarCallback
-from stable_baselines3.common.noise import ActionNoise
+from stable_baselines3.common.noise import ActionNoise, VectorizedActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
@@ -116,7 +117,7 @@ class MADDPG(OffPolicyAlgorithm):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ) -> None:
-        if isinstance(cvar_alpha, bool) or not isinstance(cvar_alpha, int | float) or not 0.0 < cvar_alpha <= 1.0:
+        if isinstance(cvar_alpha, bool) or not isinstance(cvar_alpha, Real) or not 0.0 < cvar_alpha <= 1.0:
             raise ValueError(f"cvar_alpha must be a number in (0, 1] (1 = risk-neutral mean), got {cvar_alpha!r}")
         if isinstance(env, ParallelEnv):
             raise TypeError(
@@ -170,7 +171,7 @@ class MADDPG(OffPolicyAlgorithm):
     def _read_agents(self, env: VecEnv, n_agents: int | None) -> None:
         """Set ``n_agents`` and ``agent_names`` from the env (or the argument) and check the VecEnv's rows."""
         env_n_agents = getattr(env, "n_agents", None)
-        if n_agents is not None and (isinstance(n_agents, bool) or not isinstance(n_agents, int) or n_agents < 1):
+        if n_agents is not None and (isinstance(n_agents, bool) or not isinstance(n_agents, Integral) or n_agents < 1):
             raise ValueError(f"n_agents must be an integer >= 1, got {n_agents!r}")
         if env_n_agents is not None and n_agents is not None and env_n_agents != n_agents:
             raise ValueError(f"n_agents={n_agents} disagrees with the env's n_agents={env_n_agents}")
@@ -449,10 +450,13 @@ class MADDPG(OffPolicyAlgorithm):
         tb_log_name: str = "run",
         progress_bar: bool = False,
     ) -> tuple[int, BaseCallback]:
+        assert self.env is not None, "You must set the environment before calling learn()"
         # A model loaded without an env gets its replay buffer when it is first trained
         if self.replay_buffer is None:
-            assert self.env is not None, "You must set the environment before calling learn()"
             self._make_replay_buffer()
+        # A saved per-row noise does not fit an env with another number of rows (load(path, env) with more copies)
+        if isinstance(self.action_noise, VectorizedActionNoise) and self.action_noise.n_envs != self.env.num_envs:
+            self.action_noise = VectorizedActionNoise(self.action_noise.noises[0], self.env.num_envs)
         return super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
 
     def learn(

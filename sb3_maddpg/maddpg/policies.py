@@ -1,5 +1,6 @@
 """Actors, centralised quantile critics and the MADDPG policy."""
 
+from numbers import Integral
 from typing import Any
 
 import torch as th
@@ -183,10 +184,11 @@ class MADDPGPolicy(BasePolicy):
             raise TypeError(f"MADDPGPolicy accepts a Box observation space (vector or image), got {observation_space}")
         if not isinstance(action_space, spaces.Box):
             raise TypeError(f"MADDPGPolicy accepts a Box (continuous) action space, got {action_space}")
-        if isinstance(n_quantiles, bool) or not isinstance(n_quantiles, int) or n_quantiles < 1:
+        if isinstance(n_quantiles, bool) or not isinstance(n_quantiles, Integral) or n_quantiles < 1:
             raise ValueError(f"n_quantiles must be an integer >= 1, got {n_quantiles!r}")
-        if isinstance(n_agents, bool) or not isinstance(n_agents, int) or n_agents < 1:
+        if isinstance(n_agents, bool) or not isinstance(n_agents, Integral) or n_agents < 1:
             raise ValueError(f"n_agents must be an integer >= 1, got {n_agents!r}")
+        n_quantiles, n_agents = int(n_quantiles), int(n_agents)
         super().__init__(
             observation_space,
             action_space,

@@ -155,6 +155,18 @@ class MultiAgentExperimentManager(ExperimentManager):
                 raise UsageError(f"{key} applies only with noise_type: {DECAYING_NOISE} (in {self.config})")
         return super()._preprocess_action_noise(hyperparams, saved_hyperparams, env)
 
+    def objective(self, trial: Any) -> float:
+        # Each trial gets a fresh copy of the YAML's action noise: the decaying noise counts its calls, and a shared
+        # object would start every trial after the first with the previous trials' decay.
+        noise = self._hyperparams.get("action_noise")
+        if noise is None:
+            return super().objective(trial)
+        self._hyperparams["action_noise"] = deepcopy(noise)
+        try:
+            return super().objective(trial)
+        finally:
+            self._hyperparams["action_noise"] = noise
+
     def create_callbacks(self) -> None:
         super().create_callbacks()
         if is_multiagent_env(self.env_name.gym_id):

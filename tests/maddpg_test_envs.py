@@ -1,13 +1,8 @@
 """Tiny PettingZoo ParallelEnvs for the algorithm's tests (no dependency on the project's own environment)."""
 
 import numpy as np
-import torch as th
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
-
-# Tiny networks gain nothing from intra-op threads, and on a small shared CI machine each parallel region can wait
-# milliseconds for a busy core: one thread keeps these tests fast.
-th.set_num_threads(1)
 
 
 class TargetReachEnv(ParallelEnv):

@@ -95,7 +95,8 @@ def test_short_run_writes_coverage_and_fairness_to_tensorboard(tmp_path) -> None
         tensorboard_log=str(tmp_path),
         seed=0,
     )
-    model.learn(60, callback=EpisodeMetricsCallback())
+    # No callback given: MADDPG.learn logs the episode metrics in every run
+    model.learn(60)
 
     events = glob.glob(str(tmp_path / "**" / "events.out.tfevents.*"), recursive=True)
     assert events
@@ -115,3 +116,24 @@ def test_short_run_writes_coverage_and_fairness_to_tensorboard(tmp_path) -> None
 
     paths = plot_training_logs(tmp_path, tmp_path / "figures")
     assert all(path.stat().st_size > 0 for path in paths)
+
+
+def test_maddpg_adds_the_metrics_callback_once() -> None:
+    from stable_baselines3.common.callbacks import CallbackList
+
+    from sb3_maddpg import MADDPG, make_multiagent_vec_env
+    from sb3_maddpg.maddpg.maddpg import _contains_callback
+    from sb3_maddpg_envs import uav_coverage_v0
+
+    venv = make_multiagent_vec_env(uav_coverage_v0.parallel_env, n_envs=1, seed=0, env_kwargs=dict(n_uavs=2, obs_size=16))
+    model = MADDPG("CnnPolicy", venv, buffer_size=10, policy_kwargs=dict(n_quantiles=2, net_arch=[8]))
+
+    def count(callback) -> int:
+        if isinstance(callback, CallbackList):
+            return sum(count(c) for c in callback.callbacks)
+        return int(isinstance(callback, EpisodeMetricsCallback))
+
+    assert count(model._init_callback(None)) == 1
+    given = EpisodeMetricsCallback()
+    assert count(model._init_callback([given])) == 1
+    assert _contains_callback(model._init_callback(given), EpisodeMetricsCallback)

@@ -87,3 +87,10 @@ def test_cnn_policy_on_vector_observations():
     venv = make_multiagent_vec_env(TargetReachEnv)
     with pytest.raises(ValueError, match="channel-first image"):
         MADDPG("CnnPolicy", venv)
+
+
+@pytest.mark.parametrize("actor_reg", [-1e-3, float("nan"), "0.1", True])
+def test_actor_reg_must_be_non_negative(actor_reg):
+    venv = make_multiagent_vec_env(TargetReachEnv)
+    with pytest.raises(ValueError, match="actor_reg must be a number >= 0"):
+        MADDPG("MlpPolicy", venv, actor_reg=actor_reg)

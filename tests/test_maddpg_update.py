@@ -221,3 +221,18 @@ def test_train_step_changes_all_networks_and_logs_per_agent():
         for key in ("critic_loss", "actor_loss", "q_mean", "cvar"):
             assert np.isfinite(logged[f"train/{key}_{name}"])
     assert 0.1 <= logged["train/noise_std"] <= 1.0
+
+
+def test_actor_reg_adds_mean_squared_preactivation_of_each_actor():
+    model = make_model("MlpPolicy", n_agents=2, cvar_alpha=1.0, actor_reg=0.5)
+    batch = hand_batch(model)
+    features = model.critic.encode(batch.observations).detach()
+    with th.no_grad():
+        loss = model.actor_loss(batch, features)
+        model.actor_reg = 0.0
+        unregularised = model.actor_loss(batch, features)
+        pre = model.actor.preactivations(batch.observations)  # (B, N, A)
+    # agent i pays 0.5 * mean over batch and action dimensions of its pre-tanh outputs squared
+    for i in range(2):
+        assert loss[i].item() == pytest.approx(unregularised[i].item() + 0.5 * pre[:, i].pow(2).mean().item(), abs=1e-6)
+    assert th.allclose(th.tanh(pre), model.actor(batch.observations))

@@ -17,11 +17,19 @@ from stable_baselines3.common.utils import get_parameters_by_name, polyak_update
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
+from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.common.distributional import cvar, quantile_huber_loss
 from sb3_maddpg.common.noise import DecayingGaussianNoise, current_noise_std
 from sb3_maddpg.maddpg.policies import CnnPolicy, MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentQuantileCritic
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
+
+
+def _contains_callback(callback: BaseCallback, callback_class: type[BaseCallback]) -> bool:
+    """Whether ``callback`` is, or holds in a (nested) ``CallbackList``, an instance of ``callback_class``."""
+    if isinstance(callback, callback_class):
+        return True
+    return isinstance(callback, CallbackList) and any(_contains_callback(c, callback_class) for c in callback.callbacks)
 
 
 class JointStepProgressBarCallback(ProgressBarCallback):
@@ -68,6 +76,9 @@ class MADDPG(OffPolicyAlgorithm):
     :param replay_buffer_class: replay buffer class (default ``MultiAgentReplayBuffer``)
     :param replay_buffer_kwargs: keyword arguments of the replay buffer
     :param cvar_alpha: CVaR level alpha in (0, 1] of the actor objective; 1 is risk-neutral (the mean)
+    :param actor_reg: weight of the penalty on the actors' squared pre-tanh outputs, added to each actor loss.
+        It keeps the tanh away from saturation, where its gradient vanishes and an actor can get stuck at a bound
+        of the action space (the MADDPG authors' implementation uses 1e-3); 0, the default, turns it off
     :param share_actor: one actor shared by all agents instead of one actor per agent
     :param n_agents: number of agents; read from the env's ``n_agents`` attribute when None
     :param stats_window_size: window size of the rollout logging (episodes)
@@ -107,6 +118,7 @@ class MADDPG(OffPolicyAlgorithm):
         replay_buffer_class: type[ReplayBuffer] | None = None,
         replay_buffer_kwargs: dict[str, Any] | None = None,
         cvar_alpha: float = 1.0,
+        actor_reg: float = 0.0,
         share_actor: bool = False,
         n_agents: int | None = None,
         stats_window_size: int = 100,
@@ -119,6 +131,8 @@ class MADDPG(OffPolicyAlgorithm):
     ) -> None:
         if isinstance(cvar_alpha, bool) or not isinstance(cvar_alpha, Real) or not 0.0 < cvar_alpha <= 1.0:
             raise ValueError(f"cvar_alpha must be a number in (0, 1] (1 = risk-neutral mean), got {cvar_alpha!r}")
+        if isinstance(actor_reg, bool) or not isinstance(actor_reg, int | float) or not actor_reg >= 0.0:
+            raise ValueError(f"actor_reg must be a number >= 0 (0 turns the penalty off), got {actor_reg!r}")
         if isinstance(env, ParallelEnv):
             raise TypeError(
                 "MADDPG takes an SB3 VecEnv with one row per agent, not a PettingZoo ParallelEnv: "
@@ -153,6 +167,7 @@ class MADDPG(OffPolicyAlgorithm):
             support_multi_env=True,
         )
         self.cvar_alpha = float(cvar_alpha)
+        self.actor_reg = float(actor_reg)
         self.share_actor = share_actor
         self.n_agents: int | None = n_agents
         self.agent_names: list[str] | None = None
@@ -282,19 +297,22 @@ class MADDPG(OffPolicyAlgorithm):
 
     def actor_loss(self, replay_data: MultiAgentReplayBufferSamples, features: th.Tensor) -> th.Tensor:
         """
-        Per-agent actor loss: -CVaR_alpha(Z_i(o, a)) where a_i = mu_i(o_i) and a_j (j != i) come from the batch.
+        Per-agent actor loss: -CVaR_alpha(Z_i(o, a)) where a_i = mu_i(o_i) and a_j (j != i) come from the batch,
+        plus ``actor_reg`` times the mean squared pre-tanh output of actor i.
 
         :param replay_data: a batch of joint transitions
         :param features: critic-side encodings of ``replay_data.observations``, (B, N, F) (treated as constants)
         :return: loss of each agent, (N,); loss i depends only on actor i's output
         """
-        policy_actions = self.actor(replay_data.observations)  # (B, N, A)
+        preactivations = self.actor.preactivations(replay_data.observations)  # (B, N, A)
+        policy_actions = th.tanh(preactivations)
         n_agents = policy_actions.shape[1]
         # mixed[b, i, j] = mu_j(o_j) if i == j else a_j from the batch: the joint action critic i scores
         own = th.eye(n_agents, dtype=th.bool, device=policy_actions.device).view(1, n_agents, n_agents, 1)
         mixed = th.where(own, policy_actions.unsqueeze(1), replay_data.actions.unsqueeze(1))  # (B, N, N, A)
         quantiles = self.critic.quantiles_from_features(features, mixed)  # (B, N, n_q)
-        return -cvar(quantiles, self.cvar_alpha).mean(dim=0)
+        regularisation = preactivations.pow(2).mean(dim=(0, 2))  # (N,)
+        return -cvar(quantiles, self.cvar_alpha).mean(dim=0) + self.actor_reg * regularisation
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         # Switch to train mode (this affects batch norm / dropout)
@@ -432,11 +450,14 @@ class MADDPG(OffPolicyAlgorithm):
         return RolloutReturn(num_collected_steps * n_copies, num_collected_episodes, continue_training)
 
     def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
-        # As BaseAlgorithm._init_callback, with a progress bar that counts MADDPG's timesteps
+        # As BaseAlgorithm._init_callback, with a progress bar that counts MADDPG's timesteps, and the
+        # environment's episode-end metrics (coverage, fairness, ...) logged in every run unless already asked for
         if isinstance(callback, list):
             callback = CallbackList(callback)
         if not isinstance(callback, BaseCallback):
             callback = ConvertCallback(callback)
+        if not _contains_callback(callback, EpisodeMetricsCallback):
+            callback = CallbackList([callback, EpisodeMetricsCallback()])
         if progress_bar:
             callback = CallbackList([callback, JointStepProgressBarCallback()])
         callback.init_callback(self)

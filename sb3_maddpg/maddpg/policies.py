@@ -53,15 +53,21 @@ class MultiAgentActor(nn.Module):
             get_action_dim(action_space),
             net_arch,
             activation_fn,
-            squash_output=True,
         )
+
+    def preactivations(self, observations: th.Tensor) -> th.Tensor:
+        """
+        :param observations: (B, N, *obs_shape)
+        :return: the actions before the tanh squashing, (B, N, action_dim)
+        """
+        return self.mu(self.features(observations))
 
     def forward(self, observations: th.Tensor) -> th.Tensor:
         """
         :param observations: (B, N, *obs_shape)
         :return: actions in [-1, 1], (B, N, action_dim)
         """
-        return self.mu(self.features(observations))
+        return th.tanh(self.preactivations(observations))
 
 
 class MultiAgentQuantileCritic(nn.Module):

@@ -170,9 +170,10 @@ class MultiAgentExperimentManager(ExperimentManager):
     def create_callbacks(self) -> None:
         super().create_callbacks()
         if is_multiagent_env(self.env_name.gym_id):
-            # Episode-end coverage, fairness, energy... in TensorBoard next to SB3's scalars. Harmless if the
-            # algorithm adds its own: the logger averages the same values with record_mean.
-            self.callbacks.append(EpisodeMetricsCallback())
+            # Episode-end coverage, fairness, energy... in TensorBoard next to SB3's scalars (MADDPG adds this
+            # callback itself; other algorithms trained on a multi-agent env get it here).
+            if self.algo != "maddpg":
+                self.callbacks.append(EpisodeMetricsCallback())
             for callback in self.callbacks:
                 if isinstance(callback, EvalCallback):
                     # evaluate_policy asks for a Monitor; without one it counts each agent row's return, which is

@@ -242,7 +242,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
 
     :param args: parsed arguments
     """
-    from sb3_maddpg.evaluation.report import DEFAULT_ENV_ID, evaluate_and_report, find_run_config
+    from sb3_maddpg.evaluation.report import DEFAULT_ENV_ID, ModelEnvMismatchError, evaluate_and_report, find_run_config
     from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS
 
     model_path = args.model
@@ -262,18 +262,21 @@ def run_evaluate(args: argparse.Namespace) -> None:
         raise UsageError(f"unknown env {env_id!r}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
     env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs") or {}
     check_env_kwargs(env_id, {**run_env_kwargs, "start": "random", **env_kwargs}, flag="--env-kwargs")
-    evaluate_and_report(
-        args.out,
-        n_episodes=args.episodes,
-        model_path=model_path,
-        env_id=env_id,
-        env_kwargs=env_kwargs,
-        seed=args.seed,
-        device=args.device,
-        state_steps=args.state_steps,
-        gif=not args.no_gif,
-        verbose=args.verbose,
-    )
+    try:
+        evaluate_and_report(
+            args.out,
+            n_episodes=args.episodes,
+            model_path=model_path,
+            env_id=env_id,
+            env_kwargs=env_kwargs,
+            seed=args.seed,
+            device=args.device,
+            state_steps=args.state_steps,
+            gif=not args.no_gif,
+            verbose=args.verbose,
+        )
+    except ModelEnvMismatchError as error:
+        raise UsageError(f"--model: {error}") from error
 
 
 def run_plot(args: argparse.Namespace) -> None:

@@ -200,3 +200,70 @@ def test_help_lists_the_commands(capsys: pytest.CaptureFixture) -> None:
     out = capsys.readouterr().out
     for command in ("train", "optimize", "enjoy", "evaluate", "plot"):
         assert command in out
+
+
+def test_bad_hyperparameter_value_exits_with_the_algorithms_message(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", *TINY_TRAIN, "-n", "10", "-params", "cvar_alpha:2.0"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "cvar_alpha must be a number in (0, 1]" in err and "Traceback" not in err
+
+
+def test_evaluate_refuses_a_model_trained_for_another_team_size(
+    trained_run: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    monkeypatch.chdir(trained_run)
+    model = str(run_dir(trained_run) / f"{ENV}.zip")
+    # the run used 3 UAVs; 6 would be read as two copies of the team and give plausible but wrong numbers
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate", "--model", model, "--episodes", "1", "--out", "bad", "--env-kwargs", "n_uavs:6"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "trained with 3 agents" in err and "has 6 agents" in err and "Traceback" not in err
+
+
+def test_evaluate_refuses_a_zip_that_is_not_a_model(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    import zipfile
+
+    monkeypatch.chdir(tmp_path)
+    with zipfile.ZipFile(tmp_path / "not_a_model.zip", "w") as archive:
+        archive.writestr("hello.txt", "hello")
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate", "--model", "not_a_model.zip", "--episodes", "1", "--out", "bad"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "not a MADDPG model" in err and "Traceback" not in err
+
+
+def test_evaluation_env_gets_the_entrys_env_kwargs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """RL Zoo would build the evaluation env with the env defaults when only the YAML sets env_kwargs."""
+    import rl_zoo3.train
+
+    from sb3_maddpg.zoo import exp_manager, integration
+
+    integration.register_with_rl_zoo()
+    seen: list[tuple[bool, dict]] = []
+    create_envs = exp_manager.MultiAgentExperimentManager.create_envs
+
+    def spy(self, n_envs, eval_env=False, no_log=False):
+        seen.append((eval_env, dict(self.eval_env_kwargs if eval_env else self.env_kwargs)))
+        return create_envs(self, n_envs, eval_env=eval_env, no_log=no_log)
+
+    monkeypatch.setattr(exp_manager.MultiAgentExperimentManager, "create_envs", spy)
+    monkeypatch.chdir(tmp_path)
+    config = tmp_path / "tiny.yml"
+    config.write_text(
+        f"{ENV}:\n  n_timesteps: 20\n  policy: 'CnnPolicy'\n  learning_starts: 10\n  buffer_size: 50\n"
+        '  batch_size: 4\n  policy_kwargs: "dict(n_quantiles=2, net_arch=[8])"\n'
+        "  env_kwargs:\n    obs_size: 16\n    max_cycles: 5\n    n_uavs: 2\n"
+    )
+    assert rl_zoo3.train.ExperimentManager is exp_manager.MultiAgentExperimentManager
+    assert main(["train", "--env", ENV, "-conf", str(config), "--eval-freq", "10", "--eval-episodes", "1"]) == 0
+    expected = {"obs_size": 16, "max_cycles": 5, "n_uavs": 2}
+    assert (False, expected) in seen and (True, expected) in seen

@@ -78,3 +78,18 @@ def test_nan_action_through_the_env_raises():
         env.step({"uav_0": np.array([np.nan, 0.5]), "uav_1": np.array([0.1, 0.5])})
     with pytest.raises(ValueError, match="uav_1"):
         env.step({"uav_0": np.array([0.1, 0.5])})
+
+
+@pytest.mark.parametrize("bad", [np.array([0.5]), "up", np.zeros((2, 2)), [0.1, [0.2, 0.3]]])
+def test_malformed_action_names_the_agent(bad):
+    env = uav_coverage_v0.parallel_env(n_uavs=2, obs_size=16)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="the action of agent 'uav_1' must be 2 numbers"):
+        env.step({"uav_0": np.array([0.1, 0.5]), "uav_1": bad})
+
+
+def test_action_for_an_unknown_agent_raises():
+    env = uav_coverage_v0.parallel_env(n_uavs=2, obs_size=16)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="not live"):
+        env.step({"uav_0": np.array([0.1, 0.5]), "uav_1": np.array([0.1, 0.5]), "uav_7": np.array([0.1, 0.5])})

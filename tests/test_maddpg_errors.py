@@ -94,3 +94,25 @@ def test_actor_reg_must_be_non_negative(actor_reg):
     venv = make_multiagent_vec_env(TargetReachEnv)
     with pytest.raises(ValueError, match="actor_reg must be a number >= 0"):
         MADDPG("MlpPolicy", venv, actor_reg=actor_reg)
+
+
+@pytest.mark.parametrize("name", ["buffer_size", "batch_size"])
+@pytest.mark.parametrize("value", [0, -5, "10", 2.5])
+def test_sizes_must_be_positive_integers(name, value):
+    venv = make_multiagent_vec_env(TargetReachEnv)
+    with pytest.raises(ValueError, match=f"{name} must be an integer >= 1"):
+        MADDPG("MlpPolicy", venv, **{name: value})
+
+
+def test_replay_buffer_must_store_joint_transitions():
+    from stable_baselines3.common.buffers import ReplayBuffer
+
+    venv = make_multiagent_vec_env(TargetReachEnv)
+    with pytest.raises(TypeError, match="replay_buffer_class must be MultiAgentReplayBuffer"):
+        MADDPG("MlpPolicy", venv, replay_buffer_class=ReplayBuffer)
+
+
+def test_share_actor_is_an_algorithm_argument():
+    venv = make_multiagent_vec_env(TargetReachEnv)
+    with pytest.raises(ValueError, match=r"MADDPG\(..., share_actor=True\)"):
+        MADDPG("MlpPolicy", venv, policy_kwargs=dict(share_actor=True))

@@ -109,10 +109,20 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
         agents = self.agents
         if not agents:
             raise RuntimeError("the episode has ended: call reset() before step()")
-        try:
-            joint = np.array([actions[agent] for agent in agents], dtype=np.float64)
-        except KeyError as error:
-            raise ValueError(f"actions is missing the action of agent {error.args[0]!r}; every live agent must act") from error
+        unknown = set(actions) - set(agents)
+        if unknown:
+            raise ValueError(f"actions names agents that are not live: {sorted(map(str, unknown))}; live agents: {agents}")
+        joint = np.empty((len(agents), 2), dtype=np.float64)
+        for i, agent in enumerate(agents):
+            if agent not in actions:
+                raise ValueError(f"actions is missing the action of agent {agent!r}; every live agent must act")
+            try:
+                joint[i] = np.asarray(actions[agent], dtype=np.float64).reshape(2)
+            except (TypeError, ValueError) as error:
+                raise ValueError(
+                    f"the action of agent {agent!r} must be 2 numbers (direction, distance ratio) in [0, 1], "
+                    f"got {actions[agent]!r}"
+                ) from error
         obs, rewards, terminated, truncated = self.core.step(joint)
         infos = self.core.infos()
         observations = dict(zip(agents, obs, strict=True))

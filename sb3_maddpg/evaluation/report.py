@@ -21,6 +21,10 @@ from sb3_maddpg.evaluation.figures import (
 DEFAULT_ENV_ID = "uav_coverage_v0"
 
 
+class ModelEnvMismatchError(ValueError):
+    """The model file cannot be loaded, or it was trained for another number of agents or other observations."""
+
+
 def find_run_config(model_path: str | os.PathLike) -> tuple[str | None, dict[str, Any]]:
     """
     The env id and env kwargs a model was trained with, read from the RL Zoo run folder that holds it
@@ -90,6 +94,8 @@ def evaluate_and_report(
 
     probe = make_multiagent_env(env_id, **kwargs)
     core = getattr(probe, "core", None)
+    agents = list(probe.possible_agents)
+    observation_space = probe.observation_space(agents[0])
     probe.close()
     if core is None:
         raise ValueError(f"{env_id} has no coverage metrics: evaluate runs uav_coverage envs only")
@@ -99,7 +105,18 @@ def evaluate_and_report(
     if model_path is not None:
         from sb3_maddpg import MADDPG
 
-        model = MADDPG.load(model_path, device=device)
+        try:
+            model = MADDPG.load(model_path, device=device)
+        except (AssertionError, KeyError, ValueError, TypeError, RuntimeError) as error:
+            raise ModelEnvMismatchError(f"{model_path} is not a MADDPG model that can be loaded here: {error!r}") from error
+        # A model acts on the env it was trained for: another number of agents would be read as several copies
+        # (and give plausible but wrong numbers), another observation size would fail inside the network.
+        if model.n_agents != len(agents) or model.observation_space != observation_space:
+            raise ModelEnvMismatchError(
+                f"the model was trained with {model.n_agents} agents and observations {model.observation_space}, "
+                f"but {env_id} with {kwargs} has {len(agents)} agents and observations {observation_space}; "
+                "pass the training env's settings with --env-kwargs"
+            )
         controllers.append(ModelController(model, name="maddpg"))
     controllers += [RandomController(), GreedyStaticController()]
     record_name = controllers[0].name if model_path is not None else "greedy_static"

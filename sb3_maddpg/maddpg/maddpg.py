@@ -131,6 +131,18 @@ class MADDPG(OffPolicyAlgorithm):
     ) -> None:
         if isinstance(cvar_alpha, bool) or not isinstance(cvar_alpha, Real) or not 0.0 < cvar_alpha <= 1.0:
             raise ValueError(f"cvar_alpha must be a number in (0, 1] (1 = risk-neutral mean), got {cvar_alpha!r}")
+        for name, value in (("buffer_size", buffer_size), ("batch_size", batch_size)):
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        if replay_buffer_class is not None and not (
+            isinstance(replay_buffer_class, type) and issubclass(replay_buffer_class, MultiAgentReplayBuffer)
+        ):
+            raise TypeError(
+                "replay_buffer_class must be MultiAgentReplayBuffer or a subclass (MADDPG samples joint transitions), "
+                f"got {replay_buffer_class!r}"
+            )
+        if policy_kwargs is not None and "share_actor" in policy_kwargs:
+            raise ValueError("share_actor is an argument of MADDPG, not a policy kwarg: use MADDPG(..., share_actor=True)")
         if isinstance(actor_reg, bool) or not isinstance(actor_reg, int | float) or not actor_reg >= 0.0:
             raise ValueError(f"actor_reg must be a number >= 0 (0 turns the penalty off), got {actor_reg!r}")
         if isinstance(env, ParallelEnv):
@@ -224,8 +236,7 @@ class MADDPG(OffPolicyAlgorithm):
 
         if self.replay_buffer_class is None:
             self.replay_buffer_class = MultiAgentReplayBuffer
-        if issubclass(self.replay_buffer_class, MultiAgentReplayBuffer):
-            self.replay_buffer_kwargs["n_agents"] = self.n_agents
+        self.replay_buffer_kwargs["n_agents"] = self.n_agents
         if self.replay_buffer is None and self.env is not None:
             self._make_replay_buffer()
 

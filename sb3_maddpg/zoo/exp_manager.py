@@ -2,6 +2,7 @@
 
 import inspect
 import os
+import warnings
 from collections.abc import Callable
 from copy import deepcopy
 from typing import Any
@@ -93,11 +94,12 @@ def make_zoo_multiagent_vec_env(
     from sb3_maddpg import make_multiagent_vec_env
 
     check_env_kwargs(env_id, env_kwargs)
-    kwargs: dict[str, Any] = {}
-    if vec_env_class is SubprocVecEnv and n_envs > 1 and "num_cpus" in inspect.signature(make_multiagent_vec_env).parameters:
-        kwargs["num_cpus"] = min(n_envs, os.cpu_count() or 1)
+    if vec_env_class is SubprocVecEnv:
+        # SuperSuit's multi-process concatenation hands overlapping seeds to its processes, so the copies of a
+        # multi-agent env always run in this process (the env steps at thousands of joint steps per second).
+        warnings.warn("--vec-env subproc is ignored for multi-agent envs: their copies run in one process", stacklevel=2)
     return make_multiagent_vec_env(
-        MULTIAGENT_ENVS[env_id].env_fn(), n_envs=n_envs, seed=seed, env_kwargs=dict(env_kwargs or {}), **kwargs
+        MULTIAGENT_ENVS[env_id].env_fn(), n_envs=n_envs, seed=seed, env_kwargs=dict(env_kwargs or {})
     )
 
 
@@ -122,14 +124,27 @@ class MultiAgentExperimentManager(ExperimentManager):
         check_hyperparameter_keys(hyperparams, self.algo, where)
         return hyperparams, saved_hyperparams
 
+    def setup_experiment(self) -> tuple[BaseAlgorithm, dict[str, Any]] | None:
+        try:
+            return super().setup_experiment()
+        except (ValueError, TypeError) as error:
+            # A hyperparameter value the algorithm refuses (e.g. cvar_alpha: 2.0): its own message, no traceback
+            raise UsageError(f"{self.algo} on {self.env_name.gym_id}: {error}") from error
+
     def _preprocess_hyperparams(
         self, hyperparams: dict[str, Any]
     ) -> tuple[dict[str, Any], Callable | None, list, Callable | None]:
         try:
-            return super()._preprocess_hyperparams(hyperparams)
+            processed = super()._preprocess_hyperparams(hyperparams)
         except (KeyError, SyntaxError, NameError) as error:
             # a missing n_timesteps, or a policy_kwargs string that does not evaluate
             raise UsageError(f"bad entry {self.env_name.gym_id!r} in {self.config}: {error!r}") from error
+        # RL Zoo moves the entry's env_kwargs into self.env_kwargs here but leaves the evaluation env with the
+        # kwargs given on the command line (none, unless --env-kwargs or --eval-env-kwargs was used): evaluation
+        # episodes would run another configuration (other lengths, even other spaces) than training.
+        if self._eval_env_kwargs_args is None:
+            self.eval_env_kwargs = self.env_kwargs
+        return processed
 
     def _preprocess_action_noise(
         self, hyperparams: dict[str, Any], saved_hyperparams: dict[str, Any], env: VecEnv

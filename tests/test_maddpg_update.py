@@ -236,3 +236,24 @@ def test_actor_reg_adds_mean_squared_preactivation_of_each_actor():
     for i in range(2):
         assert loss[i].item() == pytest.approx(unregularised[i].item() + 0.5 * pre[:, i].pow(2).mean().item(), abs=1e-6)
     assert th.allclose(th.tanh(pre), model.actor(batch.observations))
+
+
+def test_batch_norm_eps_reaches_every_encoder():
+    venv = make_multiagent_vec_env(CountingImageEnv, n_envs=1, seed=0, env_kwargs=dict(n_agents=2))
+    model = MADDPG(
+        "CnnPolicy",
+        venv,
+        buffer_size=10,
+        policy_kwargs=dict(n_quantiles=2, net_arch=[8], features_extractor_kwargs=dict(batch_norm_eps=1e-3)),
+    )
+    norms = [m for m in model.policy.modules() if isinstance(m, th.nn.BatchNorm2d)]
+    assert len(norms) == 4  # actor, target actor, critic, target critic
+    assert all(m.eps == 1e-3 for m in norms)
+
+
+@pytest.mark.parametrize("eps", [0.0, -1e-3, "1e-3"])
+def test_batch_norm_eps_must_be_positive(eps):
+    from gymnasium import spaces
+
+    with pytest.raises(ValueError, match="batch_norm_eps must be a number > 0"):
+        ReportCNN(spaces.Box(0, 255, (3, 16, 16), np.uint8), batch_norm_eps=eps)

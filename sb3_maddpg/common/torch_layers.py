@@ -29,11 +29,21 @@ class ReportCNN(BaseFeaturesExtractor):
     :param n_agents: number of independent encoders evaluated together; input (B, n_agents, C, H, W) when > 1
     :param normalized_image: accepted for compatibility with SB3's image extractors; unused
         (images are scaled to [0, 1] before the extractor when ``normalize_images=True``)
+    :param batch_norm_eps: the BatchNorm's epsilon (PyTorch's default). A replay buffer of near-identical images
+        (a team that stays still) drives the running variances towards 0; the target networks, in eval mode, then
+        divide small drifts by sqrt(eps) (316x at 1e-5) and their TD targets can diverge. A larger value (1e-3)
+        bounds this, through ``policy_kwargs=dict(features_extractor_kwargs=dict(batch_norm_eps=1e-3))``
     """
 
     stacks_agents: ClassVar[bool] = True
 
-    def __init__(self, observation_space: spaces.Box, n_agents: int = 1, normalized_image: bool = False) -> None:
+    def __init__(
+        self,
+        observation_space: spaces.Box,
+        n_agents: int = 1,
+        normalized_image: bool = False,
+        batch_norm_eps: float = 1e-5,
+    ) -> None:
         if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 3:
             raise ValueError(
                 "ReportCNN accepts a channel-first image Box of shape (C, H, W), "
@@ -44,6 +54,8 @@ class ReportCNN(BaseFeaturesExtractor):
             raise ValueError(
                 f"ReportCNN needs images of at least 15x15 pixels (three 3x3 stride-2 convolutions), got {height}x{width}"
             )
+        if isinstance(batch_norm_eps, bool) or not isinstance(batch_norm_eps, int | float) or not batch_norm_eps > 0:
+            raise ValueError(f"batch_norm_eps must be a number > 0, got {batch_norm_eps!r}")
         super().__init__(observation_space, features_dim=1)
         self.n_agents = n_agents
         g = n_agents
@@ -54,7 +66,7 @@ class ReportCNN(BaseFeaturesExtractor):
             nn.ReLU(),
             nn.Conv2d(g * 32, g * 64, kernel_size=3, stride=2, groups=g),
             nn.ReLU(),
-            nn.BatchNorm2d(g * 64),
+            nn.BatchNorm2d(g * 64, eps=batch_norm_eps),
         )
         # Flatten size per agent from one dummy pass (eval mode so the running statistics stay untouched)
         self.cnn.eval()

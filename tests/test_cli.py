@@ -61,6 +61,8 @@ def test_train_leaves_model_checkpoints_config_and_monitor(trained_run: Path) ->
     assert lines[1].startswith("r,l,t,coverage,fairness")
     # one line per joint episode: 200 timesteps of 20-step episodes
     assert len(lines) - 2 == 10
+    # each line is a whole joint episode: length 20 joint steps
+    assert all(line.split(",")[1] == "20" for line in lines[2:])
 
 
 def test_train_writes_coverage_and_fairness_to_tensorboard(trained_run: Path) -> None:

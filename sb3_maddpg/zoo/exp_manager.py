@@ -15,7 +15,7 @@ from stable_baselines3.common.callbacks import EvalCallback
 from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecFrameStack, VecNormalize
 
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
-from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor, copy_multiagent_attributes
+from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
 
 # Keys of an RL Zoo YAML entry that RL Zoo consumes itself; every other key is an argument of the algorithm.
@@ -218,7 +218,7 @@ def _wrap_like_rl_zoo(
 ) -> VecEnv:
     """
     The optional VecEnv wrappers of an RL Zoo entry (``vec_env_wrapper``, ``normalize``, ``frame_stack``), in RL Zoo's
-    order, keeping the multi-agent attributes visible on the outer wrapper.
+    order. SB3's VecEnv wrappers forward attribute look-ups, so ``n_agents`` stays visible on the outer one.
 
     :param env: the multi-agent VecEnv
     :param vec_env_wrapper: the entry's ``vec_env_wrapper``
@@ -226,14 +226,11 @@ def _wrap_like_rl_zoo(
     :param normalize: applies ``VecNormalize`` when the entry asks for it
     :return: the wrapped VecEnv
     """
-    inner = env
     if vec_env_wrapper is not None:
         env = vec_env_wrapper(env)
     env = normalize(env)
     if frame_stack:
         env = VecFrameStack(env, frame_stack)
-    if env is not inner:
-        copy_multiagent_attributes(env, inner)
     return env
 
 

@@ -11,23 +11,6 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnvStepReturn
 
 from sb3_maddpg.common.callbacks import EPISODE_METRIC_KEYS, joint_episode_metrics
 
-# Attributes of the multi-agent VecEnv that the algorithm reads. They are copied onto the wrappers because SuperSuit's
-# SB3 wrapper does not forward attribute look-ups through ``VecEnvWrapper.__getattr__``.
-_MULTIAGENT_ATTRIBUTES = ("n_agents", "possible_agents", "n_copies")
-
-
-def copy_multiagent_attributes(wrapper: VecEnv, venv: VecEnv) -> None:
-    """
-    Copy ``n_agents``, ``possible_agents`` and ``n_copies`` from a multi-agent VecEnv onto a wrapper of it.
-
-    :param wrapper: the outer VecEnv
-    :param venv: the wrapped VecEnv
-    """
-    for name in _MULTIAGENT_ATTRIBUTES:
-        value = getattr(venv, name, None)
-        if value is not None:
-            setattr(wrapper, name, value)
-
 
 class JointEpisodeMonitor(VecEnvWrapper):
     """
@@ -35,13 +18,14 @@ class JointEpisodeMonitor(VecEnvWrapper):
     in SB3's ``monitor.csv`` format, so ``stable_baselines3.common.monitor.load_results``, RL Zoo's ``plot_train``
     and ``python -m sb3_maddpg plot`` can read training runs.
 
-    It deliberately adds no ``episode`` key to the infos and is not a ``VecMonitor``: SB3's ``evaluate_policy`` would
-    then wait for an ``episode`` key in every agent row. The team return is the sum of the agents' rewards.
+    It is not a ``VecMonitor``: SB3's ``evaluate_policy`` would then wait for an ``episode`` key in every agent row.
+    The team return and length are the episode statistics that ``make_multiagent_vec_env`` puts in the info of each
+    copy's agent-0 row (the team return is the sum of the agents' rewards).
 
-    :param venv: a multi-agent VecEnv with agent-major rows (row = copy * n_agents + agent)
+    :param venv: a VecEnv made by ``make_multiagent_vec_env`` (possibly wrapped), agent-major rows
+        (row = copy * n_agents + agent)
     :param filename: where to write (``monitor.csv`` is appended to a folder-like name as SB3 does); None to write
         nothing and only keep the statistics in memory
-    :param n_agents: agents per copy; by default ``venv.n_agents``
     :param info_keywords: metric names read from the infos at the end of each joint episode
     """
 
@@ -49,15 +33,10 @@ class JointEpisodeMonitor(VecEnvWrapper):
         self,
         venv: VecEnv,
         filename: str | None = None,
-        n_agents: int | None = None,
         info_keywords: Sequence[str] = EPISODE_METRIC_KEYS,
     ) -> None:
         super().__init__(venv)
-        copy_multiagent_attributes(self, venv)
-        self.n_agents = int(n_agents or getattr(venv, "n_agents", 1))
-        if self.num_envs % self.n_agents != 0:
-            raise ValueError(f"The VecEnv has {self.num_envs} rows, not a multiple of n_agents={self.n_agents}")
-        self.n_copies = self.num_envs // self.n_agents
+        self.n_agents: int = venv.n_agents  # type: ignore[attr-defined]
         self.info_keywords = tuple(info_keywords)
         self.t_start = time.time()
         self.results_writer: ResultsWriter | None = None
@@ -65,25 +44,20 @@ class JointEpisodeMonitor(VecEnvWrapper):
             self.results_writer = ResultsWriter(
                 filename, header={"t_start": self.t_start, "env_id": "multi-agent"}, extra_keys=self.info_keywords
             )
-        self.returns = np.zeros(self.n_copies)
-        self.lengths = np.zeros(self.n_copies, dtype=np.int64)
         self.episodes: list[dict[str, Any]] = []
 
     def reset(self) -> Any:
-        obs = self.venv.reset()
-        self.returns[:] = 0.0
-        self.lengths[:] = 0
-        return obs
+        return self.venv.reset()
 
     def step_wait(self) -> VecEnvStepReturn:
         obs, rewards, dones, infos = self.venv.step_wait()
-        self.returns += np.asarray(rewards, dtype=np.float64).reshape(self.n_copies, self.n_agents).sum(axis=1)
-        self.lengths += 1
-        for copy in np.flatnonzero(np.asarray(dones)[:: self.n_agents]):
-            metrics = joint_episode_metrics(infos, int(copy) * self.n_agents, self.n_agents, self.info_keywords)
+        n_agents = self.n_agents
+        for first_row in np.flatnonzero(np.asarray(dones)[::n_agents]) * n_agents:
+            metrics = joint_episode_metrics(infos, int(first_row), n_agents, self.info_keywords)
+            episode = infos[first_row]["episode"]
             row: dict[str, Any] = {
-                "r": round(float(self.returns[copy]), 6),
-                "l": int(self.lengths[copy]),
+                "r": round(float(episode["r"]), 6),
+                "l": int(episode["l"]),
                 "t": round(time.time() - self.t_start, 6),
             }
             # The CSV has a fixed header: an env without a metric leaves its column empty.
@@ -91,8 +65,6 @@ class JointEpisodeMonitor(VecEnvWrapper):
             self.episodes.append(row)
             if self.results_writer is not None:
                 self.results_writer.write_row(row)
-            self.returns[copy] = 0.0
-            self.lengths[copy] = 0
         return obs, rewards, dones, infos
 
     def close(self) -> None:
@@ -124,7 +96,6 @@ class EnjoyVecEnv(VecEnvWrapper):
 
     def __init__(self, venv: VecEnv, can_render_human: bool = False) -> None:
         super().__init__(venv)
-        copy_multiagent_attributes(self, venv)
         self.can_render_human = can_render_human
 
     def reset(self) -> Any:

@@ -6,6 +6,7 @@ a PettingZoo ``ParallelEnv`` is not a ``gymnasium.Env``: :func:`register_multiag
 here and puts a placeholder into Gymnasium's registry whose ``gym.make`` explains how the env is built instead.
 """
 
+import functools
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -54,7 +55,8 @@ class MultiAgentEnvSpec:
         """
         :return: a constructor taking keyword arguments, with this spec's defaults applied first
         """
-        return _EnvFn(self.constructor(), dict(self.kwargs))
+        # functools.partial: call-time keyword arguments override the defaults, and it pickles (for worker processes)
+        return functools.partial(self.constructor(), **self.kwargs)
 
     def make(self, **kwargs: Any) -> ParallelEnv:
         """
@@ -62,17 +64,6 @@ class MultiAgentEnvSpec:
         :return: a new ``ParallelEnv``
         """
         return self.env_fn()(**kwargs)
-
-
-class _EnvFn:
-    """A picklable constructor with default keyword arguments (SubprocVecEnv and SuperSuit's workers pickle it)."""
-
-    def __init__(self, constructor: Callable[..., ParallelEnv], defaults: dict[str, Any]) -> None:
-        self.constructor = constructor
-        self.defaults = defaults
-
-    def __call__(self, **kwargs: Any) -> ParallelEnv:
-        return self.constructor(**{**self.defaults, **kwargs})
 
 
 class _NotAGymEnv:

@@ -25,8 +25,12 @@ import numpy as np
 
 __all__ = ["UAVCoverageCore", "load_poi_image", "pois_from_image"]
 
-# Constant used by the wall test: a coordinate is inside when 0 <= x < L.
 _TWO_PI = 2.0 * math.pi
+
+#: The rules a v1 env may switch; the first of each is the report's (``uav_coverage_v0``).
+ACTION_MODES = ("polar", "cartesian")
+WALL_MODES = ("refuse", "clip")
+REWARD_MODES = ("report", "coverage")
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -38,19 +42,33 @@ def _check_int(name: str, value: Any, minimum: int) -> int:
     return int(value)
 
 
-def _check_real(name: str, value: Any, *, low: float = 0.0, low_inclusive: bool = False, high: float | None = None) -> float:
+def _check_real(
+    name: str,
+    value: Any,
+    *,
+    low: float = 0.0,
+    low_inclusive: bool = False,
+    high: float | None = None,
+    high_inclusive: bool = False,
+) -> float:
     ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(float(value))
     if ok:
         value_f = float(value)
         ok = value_f >= low if low_inclusive else value_f > low
         if high is not None:
-            ok = ok and value_f < high
+            ok = ok and (value_f <= high if high_inclusive else value_f < high)
     if not ok:
         accepted = f"a finite number {'>=' if low_inclusive else '>'} {low:g}"
         if high is not None:
-            accepted += f" and < {high:g}"
+            accepted += f" and {'<=' if high_inclusive else '<'} {high:g}"
         raise ValueError(f"{name} must be {accepted}, got {value!r}")
     return float(value)
+
+
+def _check_choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise ValueError(f"{name} must be one of {', '.join(map(repr, choices))}, got {value!r}")
+    return value
 
 
 def _check_points(name: str, value: Any, n_rows: int | None, map_size: int) -> np.ndarray:
@@ -163,6 +181,19 @@ class UAVCoverageCore:
         array (N, 2) of start positions
     :param reward_scale: every agent's reward is multiplied by this
     :param reward_clip: if set, rewards are clipped into [-reward_clip, reward_clip]
+    :param action_mode: ``"polar"`` (the report's: a = (direction / 2 pi, distance / l_max)) or ``"cartesian"``
+        (displacement (dx, dy) = (2 a - 1) l_max, shortened to l_max when longer; a = (0.5, 0.5) hovers)
+    :param wall_mode: ``"refuse"`` (the report's: a move that would leave the area is not made and is charged
+        ``wall_penalty``) or ``"clip"`` (the UAV stops at the boundary and is charged ``wall_penalty`` times the
+        overshoot / l_max, so the penalty grows continuously from 0 with how far the move would have gone out)
+    :param reward_mode: ``"report"`` (the report's shared reward: fairness-weighted coverage gain per unit of energy
+        plus ``entropy_coef`` times the spatial entropy) or ``"coverage"`` (per-agent credit of order 1: each PoI
+        covered this step is worth ``1 - fairness_coef * c_{t-1}(k)``, split equally between the UAVs covering it and
+        scaled by N / K, so the agents' rewards sum to N times the team's weighted coverage fraction; minus
+        ``energy_coef`` times the UAV's own energy this step / (eta l_max))
+    :param fairness_coef: with ``reward_mode="coverage"``, how much less a PoI is worth the more it has been covered
+        so far, in [0, 1] (0: every covered PoI counts 1; 1: only the uncovered share of its history counts)
+    :param energy_coef: with ``reward_mode="coverage"``, the weight of the UAV's own energy (>= 0)
     """
 
     def __init__(
@@ -187,6 +218,11 @@ class UAVCoverageCore:
         start: str | np.ndarray | list = "fixed",
         reward_scale: float = 1.0,
         reward_clip: float | None = None,
+        action_mode: str = "polar",
+        wall_mode: str = "refuse",
+        reward_mode: str = "report",
+        fairness_coef: float = 0.5,
+        energy_coef: float = 0.5,
     ) -> None:
         # --- configuration, validated where it enters -------------------------------------------------------------
         self.map_size = _check_int("map_size", map_size, 1)
@@ -213,6 +249,11 @@ class UAVCoverageCore:
         self.reward_scale = _check_real("reward_scale", reward_scale)
         self.reward_clip = None if reward_clip is None else _check_real("reward_clip", reward_clip)
         self.poi_threshold = _check_real("poi_threshold", poi_threshold, low_inclusive=True, high=1.0)
+        self.action_mode = _check_choice("action_mode", action_mode, ACTION_MODES)
+        self.wall_mode = _check_choice("wall_mode", wall_mode, WALL_MODES)
+        self.reward_mode = _check_choice("reward_mode", reward_mode, REWARD_MODES)
+        self.fairness_coef = _check_real("fairness_coef", fairness_coef, low_inclusive=True, high=1.0, high_inclusive=True)
+        self.energy_coef = _check_real("energy_coef", energy_coef, low_inclusive=True)
 
         # --- PoIs ---------------------------------------------------------------------------------------------------
         self.pois_mode: str
@@ -421,15 +462,26 @@ class UAVCoverageCore:
         active = self.energy > self.depletion_level
         self.active[...] = active
 
-        # 1. + 3. Polar move; a move that would leave [0, L)^2 is refused and charged p_w.
-        theta = _TWO_PI * actions[:, 0]
-        rho = actions[:, 1]
-        length = rho * self.max_distance
-        target = self.positions + length[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1)
+        # 1. The commanded displacement: polar (the report's) or Cartesian.
+        displacement, rho = self._displacement(actions)
+        target = self.positions + displacement
+
+        # 3. A move that would leave [0, L)^2: refused and charged p_w (the report's), or stopped at the boundary and
+        # charged p_w * overshoot / l_max (v1), in which case the energy is that of the distance actually flown.
         inside = ((target >= 0.0) & (target < self.map_size)).all(axis=1)
-        moved = active & inside
         wall_hit = active & ~inside
-        self.positions[moved] = target[moved]
+        if self.wall_mode == "refuse":
+            moved = active & inside
+            self.positions[moved] = target[moved]
+            wall_cost = self.wall_penalty * wall_hit
+        else:
+            clipped = np.clip(target, 0.0, np.nextafter(float(self.map_size), 0.0))
+            overshoot = np.sqrt(np.einsum("nd,nd->n", target - clipped, target - clipped))
+            flown = np.sqrt(np.einsum("nd,nd->n", clipped - self.positions, clipped - self.positions))
+            self.positions[active] = clipped[active]
+            rho = np.where(active, np.minimum(flown / self.max_distance, 1.0), rho)
+            wall_cost = np.where(wall_hit, self.wall_penalty * overshoot / self.max_distance, 0.0)
+        length = rho * self.max_distance
 
         # 4. Energy, charged also for a refused move, never more than what is left.
         spent = np.where(active, np.minimum(self.move_energy * length + self.hover_energy * (1.0 - rho), self.energy), 0.0)
@@ -444,6 +496,9 @@ class UAVCoverageCore:
         sq_dist = np.einsum("nkd,nkd->nk", diff, diff)
         covered = ((sq_dist <= self.coverage_range**2) & active[:, None]).any(axis=0)
         self.visits += covered
+        # Weights of the coverage reward use c_{t-1}(k), read before this step's update.
+        if self.reward_mode == "coverage":
+            credit = self._coverage_credit(sq_dist <= self.coverage_range**2, active)
         np.divide(self.visits, self.t, out=self.coverage_scores)
         score_sum = float(self.coverage_scores.sum())
 
@@ -475,9 +530,14 @@ class UAVCoverageCore:
         self.energy_efficiency = self.fairness * self.coverage / (self.energy_ratio + self.eps)
 
         # 8. Shared reward and per-agent rewards.
-        shared = self.fairness * (score_sum - previous_sum) / (step_energy + self.eps) + self.entropy_coef * entropy
-        penalties = self.wall_penalty * wall_hit + self.comm_penalty * disconnected
-        rewards = self.reward_scale * (shared - penalties)
+        penalties = wall_cost + self.comm_penalty * disconnected
+        if self.reward_mode == "report":
+            shared = self.fairness * (score_sum - previous_sum) / (step_energy + self.eps) + self.entropy_coef * entropy
+            rewards = self.reward_scale * (shared - penalties)
+        else:
+            shared = float(credit.mean())
+            own_energy = self.energy_coef * spent / (self.move_energy * self.max_distance)
+            rewards = self.reward_scale * (credit - own_energy - penalties)
         if self.reward_clip is not None:
             np.clip(rewards, -self.reward_clip, self.reward_clip, out=rewards)
         rewards[~active] = 0.0
@@ -500,6 +560,38 @@ class UAVCoverageCore:
 
         self._update_coverage_channel()
         return self.observations(), rewards, terminated, truncated
+
+    def _displacement(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Commanded displacement of every UAV (before the wall rule).
+
+        :param actions: (N, 2) in [0, 1]^2
+        :return: displacement (N, 2) and distance ratio rho = length / l_max (N,); polar:
+            rho l_max (cos 2 pi a_0, sin 2 pi a_0) with rho = a_1; Cartesian: (2 a - 1) l_max, scaled down to length
+            l_max where it is longer
+        """
+        if self.action_mode == "polar":
+            theta = _TWO_PI * actions[:, 0]
+            rho = actions[:, 1]
+            return (rho * self.max_distance)[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1), rho
+        displacement = (2.0 * actions - 1.0) * self.max_distance
+        norm = np.sqrt(np.einsum("nd,nd->n", displacement, displacement))
+        rho = np.minimum(norm / self.max_distance, 1.0)
+        return displacement * (rho * self.max_distance / np.maximum(norm, 1e-12))[:, None], rho
+
+    def _coverage_credit(self, in_range: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """
+        Each UAV's share of this step's weighted coverage (``reward_mode="coverage"``).
+
+        :param in_range: (N, K) bool, PoI k within R0 of UAV i after the move
+        :param active: (N,) bool, the UAVs active this step
+        :return: (N,) credit: (N / K) sum_k [i covers k] (1 - fairness_coef c_{t-1}(k)) / (number of UAVs covering k)
+        """
+        covering = in_range & active[:, None]
+        n_covering = covering.sum(axis=0)
+        # c_{t-1}(k) = visits before this step / (t - 1); coverage_scores still holds it (0 at the first step).
+        weight = (1.0 - self.fairness_coef * self.coverage_scores) / np.maximum(n_covering, 1)
+        return covering @ weight * (self.n_uavs / len(weight))
 
     # -----------------------------------------------------------------------------------------------------------------
     # Observations and state

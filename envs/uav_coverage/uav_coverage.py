@@ -29,6 +29,7 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
     ``energy_efficiency``, ``wall_hits`` and ``disconnections`` at every step (and after reset).
 
     :param render_mode: ``None`` or ``"rgb_array"``
+    :param name: the env's name in ``metadata`` (the versioned modules set it)
     :param core_kwargs: the parameters of :class:`UAVCoverageCore` (``map_size``, ``n_uavs``, ``pois``, ...)
     """
 
@@ -39,8 +40,9 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
         "render_fps": 10,
     }
 
-    def __init__(self, render_mode: str | None = None, **core_kwargs: Any) -> None:
-        EzPickle.__init__(self, render_mode=render_mode, **core_kwargs)
+    def __init__(self, render_mode: str | None = None, name: str = "uav_coverage_v0", **core_kwargs: Any) -> None:
+        EzPickle.__init__(self, render_mode=render_mode, name=name, **core_kwargs)
+        self.metadata = {**self.metadata, "name": name}
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode

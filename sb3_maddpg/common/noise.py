@@ -9,14 +9,16 @@ class DecayingGaussianNoise(ActionNoise):
     """
     Gaussian action noise whose standard deviation decays geometrically towards a floor.
 
-    After ``k`` calls the noise has standard deviation
+    At timestep ``k`` the noise has standard deviation
     ``sigma_k = final_sigma + (sigma - final_sigma) * decay**k``,
     so it starts at ``sigma`` and approaches ``final_sigma``. The report's schedule, 1.0 decaying towards 0.1,
     is the default of ``MADDPG``.
 
+    ``k`` is the attribute ``timestep``. During ``learn`` MADDPG sets it to the model's ``num_timesteps`` before
+    every VecEnv step (``set_noise_timestep``), so the schedule counts timesteps (joint steps of one environment
+    copy), like every other counter: the same ``decay`` gives the same schedule with 1 or 8 copies, and a resumed
+    model continues it. Used on its own, each call advances ``timestep`` by one.
     SB3 adds action noise to the action rescaled to [-1, 1] (then clips), so ``sigma`` is measured in that scale.
-    During ``learn`` SB3 calls the noise once per VecEnv step for each row (through ``VectorizedActionNoise``,
-    which holds one copy per row), so ``k`` counts VecEnv steps: ``k = num_timesteps / n_copies``.
     ``reset()`` (called at episode ends) does not restart the decay.
 
     :param mean: mean of the noise, shape (action_dim,)
@@ -43,17 +45,17 @@ class DecayingGaussianNoise(ActionNoise):
             raise ValueError(f"sigma and final_sigma must be >= 0, got {sigma} and {final_sigma}")
         self._decay = decay
         self._dtype = dtype
-        self.n_calls = 0
+        self.timestep = 0
         super().__init__()
 
     @property
     def current_sigma(self) -> np.ndarray:
         """The standard deviation the next call will use, shape (action_dim,)."""
-        return self._final_sigma + (self._sigma - self._final_sigma) * self._decay**self.n_calls
+        return self._final_sigma + (self._sigma - self._final_sigma) * self._decay**self.timestep
 
     def __call__(self) -> np.ndarray:
         noise = np.random.normal(self._mu, self.current_sigma).astype(self._dtype)
-        self.n_calls += 1
+        self.timestep += 1
         return noise
 
     def reset(self) -> None:
@@ -62,8 +64,22 @@ class DecayingGaussianNoise(ActionNoise):
     def __repr__(self) -> str:
         return (
             f"DecayingGaussianNoise(mu={self._mu}, sigma={self._sigma}, final_sigma={self._final_sigma}, "
-            f"decay={self._decay}, n_calls={self.n_calls})"
+            f"decay={self._decay}, timestep={self.timestep})"
         )
+
+
+def set_noise_timestep(action_noise: ActionNoise | None, timestep: int) -> None:
+    """
+    Set the schedule position of a ``DecayingGaussianNoise`` (or of each copy in a ``VectorizedActionNoise``);
+    any other noise is left alone.
+
+    :param action_noise: the algorithm's action noise
+    :param timestep: the timestep the next call belongs to
+    """
+    noises = action_noise.noises if isinstance(action_noise, VectorizedActionNoise) else [action_noise]
+    for noise in noises:
+        if isinstance(noise, DecayingGaussianNoise):
+            noise.timestep = int(timestep)
 
 
 def current_noise_std(action_noise: ActionNoise | None) -> float | None:

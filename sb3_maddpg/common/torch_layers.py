@@ -17,7 +17,7 @@ from torch import nn
 
 class ReportCNN(BaseFeaturesExtractor):
     """
-    The report's encoder: Conv(C->16), Conv(16->32), Conv(32->64), each 3x3 with stride 2 and no padding,
+    The report's encoder: Conv(C->16), Conv(16->32), Conv(32->64), each 3x3 with stride 2 and no padding (by default),
     each followed by ReLU, then BatchNorm over the 64 channels, then flatten.
     The flatten size comes from one dummy forward pass (64 * 9 * 9 = 5184 for 80x80 inputs, 64 for 16x16).
 
@@ -29,6 +29,12 @@ class ReportCNN(BaseFeaturesExtractor):
     :param n_agents: number of independent encoders evaluated together; input (B, n_agents, C, H, W) when > 1
     :param normalized_image: accepted for compatibility with SB3's image extractors; unused
         (images are scaled to [0, 1] before the extractor when ``normalize_images=True``)
+    :param padding: zero padding of each convolution. The report's 0 leaves pixels unread: at 16x16 the three
+        convolutions read pixels 0-14 only, so the last row and column (31 of 256 map cells) reach no feature,
+        and at 80x80 the last row and column. ``padding=1`` reads every pixel
+    :param coord_channels: append two constant channels holding each pixel's column and row in [0, 1] to the input
+        (CoordConv, Liu et al. 2018, https://arxiv.org/abs/1807.03247), so that the encoder can tell where on the map
+        a pattern lies (the UAV's own position, the walls), not only what it looks like
     :param batch_norm_eps: the BatchNorm's epsilon (PyTorch's default). A replay buffer of near-identical images
         (a team that stays still) drives the running variances towards 0; the target networks, in eval mode, then
         divide small drifts by sqrt(eps) (316x at 1e-5) and their TD targets can diverge. A larger value (1e-3)
@@ -42,6 +48,8 @@ class ReportCNN(BaseFeaturesExtractor):
         observation_space: spaces.Box,
         n_agents: int = 1,
         normalized_image: bool = False,
+        padding: int = 0,
+        coord_channels: bool = False,
         batch_norm_eps: float = 1e-5,
     ) -> None:
         if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 3:
@@ -56,36 +64,60 @@ class ReportCNN(BaseFeaturesExtractor):
             )
         if isinstance(batch_norm_eps, bool) or not isinstance(batch_norm_eps, int | float) or not batch_norm_eps > 0:
             raise ValueError(f"batch_norm_eps must be a number > 0, got {batch_norm_eps!r}")
+        if isinstance(padding, bool) or not isinstance(padding, int) or padding not in (0, 1):
+            raise ValueError(f"padding must be 0 (the report's) or 1 (every pixel read), got {padding!r}")
+        if not isinstance(coord_channels, bool):
+            raise TypeError(f"coord_channels must be True or False, got {coord_channels!r}")
         super().__init__(observation_space, features_dim=1)
         self.n_agents = n_agents
+        self.coord_channels = coord_channels
         g = n_agents
+        in_channels = n_channels + (2 if coord_channels else 0)
+        if coord_channels:
+            rows = th.linspace(0.0, 1.0, height).view(1, height, 1).expand(1, height, width)
+            cols = th.linspace(0.0, 1.0, width).view(1, 1, width).expand(1, height, width)
+            self.register_buffer("coords", th.cat([cols, rows]).contiguous(), persistent=False)
         self.cnn = nn.Sequential(
-            nn.Conv2d(g * n_channels, g * 16, kernel_size=3, stride=2, groups=g),
+            nn.Conv2d(g * in_channels, g * 16, kernel_size=3, stride=2, padding=padding, groups=g),
             nn.ReLU(),
-            nn.Conv2d(g * 16, g * 32, kernel_size=3, stride=2, groups=g),
+            nn.Conv2d(g * 16, g * 32, kernel_size=3, stride=2, padding=padding, groups=g),
             nn.ReLU(),
-            nn.Conv2d(g * 32, g * 64, kernel_size=3, stride=2, groups=g),
+            nn.Conv2d(g * 32, g * 64, kernel_size=3, stride=2, padding=padding, groups=g),
             nn.ReLU(),
             nn.BatchNorm2d(g * 64, eps=batch_norm_eps),
         )
         # Flatten size per agent from one dummy pass (eval mode so the running statistics stay untouched)
         self.cnn.eval()
         with th.no_grad():
-            dummy = th.zeros(1, g * n_channels, height, width)
+            dummy = th.zeros(1, g * in_channels, height, width)
             self._features_dim = self.cnn(dummy).numel() // g
         self.cnn.train()
+
+    def _with_coords(self, observations: th.Tensor) -> th.Tensor:
+        """Append the coordinate channels to (..., C, H, W) images."""
+        coords = self.coords.to(observations.dtype).expand(*observations.shape[:-3], *self.coords.shape)
+        return th.cat([observations, coords], dim=-3)
 
     def forward(self, observations: th.Tensor) -> th.Tensor:
         """
         :param observations: (B, C, H, W) when ``n_agents == 1``, otherwise (B, n_agents, C, H, W)
         :return: features (B, F) when ``n_agents == 1`` and the input is 4-D, otherwise (B, n_agents, F)
         """
+        if self.coord_channels:
+            observations = self._with_coords(observations)
         if observations.dim() == 4:
-            return self.cnn(observations).flatten(1)
+            return self._encode(observations).flatten(1)
         batch_size = observations.shape[0]
         # (B, N, C, H, W) -> (B, N*C, H, W): group g of the convolutions reads agent g's channels
-        out = self.cnn(observations.flatten(1, 2))
-        return out.view(batch_size, self.n_agents, -1)
+        out = self._encode(observations.flatten(1, 2))
+        return out.reshape(batch_size, self.n_agents, -1)
+
+    def _encode(self, images: th.Tensor) -> th.Tensor:
+        # Channels-last halves the time of the grouped convolutions on CPU (oneDNN); the output goes back to the
+        # default layout so that flatten keeps the (C, H, W) order of the features.
+        if images.device.type == "cpu":
+            images = images.contiguous(memory_format=th.channels_last)
+        return self.cnn(images).contiguous()
 
 
 class MultiAgentFeatures(nn.Module):

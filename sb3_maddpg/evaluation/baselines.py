@@ -2,8 +2,8 @@
 Controllers that act in a ``uav_coverage_v0`` ParallelEnv: a trained model and two baselines that need no training.
 
 A controller is reset at the start of every episode with the env (so it may read the simulation, ``env.core``) and
-returns one action per live agent at each step. Actions are in [0, 1]^2: direction theta = 2 pi a0, distance
-rho * l_max with rho = a1 (SPEC §1.4).
+returns one action per live agent at each step. Actions are in [0, 1]^2, in the env's encoding: polar (direction
+theta = 2 pi a0, distance rho * l_max with rho = a1, SPEC §1.4) or Cartesian (displacement (2 a - 1) l_max).
 """
 
 from typing import Any, Protocol
@@ -125,7 +125,13 @@ def assign_targets(positions: np.ndarray, targets: np.ndarray) -> np.ndarray:
     return targets[assigned]
 
 
-def fly_to(positions: np.ndarray, targets: np.ndarray, max_distance: float, tolerance: float = 1e-3) -> np.ndarray:
+def fly_to(
+    positions: np.ndarray,
+    targets: np.ndarray,
+    max_distance: float,
+    tolerance: float = 1e-3,
+    action_mode: str = "polar",
+) -> np.ndarray:
     """
     Actions that fly each UAV straight toward its target, at most ``max_distance`` per step, and hover once there.
 
@@ -133,10 +139,15 @@ def fly_to(positions: np.ndarray, targets: np.ndarray, max_distance: float, tole
     :param targets: (N, 2) targets
     :param max_distance: l_max
     :param tolerance: distance under which a UAV hovers (rho = 0) instead of correcting float rounding
-    :return: (N, 2) float32 actions in [0, 1]^2: (theta / 2 pi, rho)
+    :param action_mode: the env's action encoding, ``"polar"`` or ``"cartesian"``
+    :return: (N, 2) float32 actions in [0, 1]^2: (theta / 2 pi, rho) when polar, (dx, dy) / (2 l_max) + 0.5 when
+        Cartesian
     """
     delta = targets - positions
     distance = np.hypot(delta[:, 0], delta[:, 1])
+    if action_mode == "cartesian":
+        step = np.where(distance > tolerance, np.minimum(1.0, max_distance / np.maximum(distance, 1e-12)), 0.0)
+        return np.clip(0.5 + delta * step[:, None] / (2.0 * max_distance), 0.0, 1.0).astype(np.float32)
     direction = np.mod(np.arctan2(delta[:, 1], delta[:, 0]) / (2.0 * np.pi), 1.0)
     rho = np.where(distance > tolerance, np.minimum(distance / max_distance, 1.0), 0.0)
     return np.stack([direction, rho], axis=1).astype(np.float32)
@@ -169,7 +180,7 @@ class GreedyStaticController:
         if self.targets is None:
             raise RuntimeError("GreedyStaticController.reset() must be called at the start of each episode")
         core = _core(env)
-        actions = fly_to(core.positions, self.targets, core.max_distance)
+        actions = fly_to(core.positions, self.targets, core.max_distance, action_mode=core.action_mode)
         return {agent: actions[env.possible_agents.index(agent)] for agent in observations}
 
 

@@ -13,16 +13,25 @@ from stable_baselines3.common.noise import ActionNoise, VectorizedActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
-from stable_baselines3.common.utils import get_parameters_by_name, polyak_update, should_collect_more_steps
+from stable_baselines3.common.utils import (
+    FloatSchedule,
+    get_parameters_by_name,
+    polyak_update,
+    should_collect_more_steps,
+    update_learning_rate,
+)
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.common.distributional import cvar, quantile_huber_loss
-from sb3_maddpg.common.noise import DecayingGaussianNoise, current_noise_std
+from sb3_maddpg.common.noise import DecayingGaussianNoise, current_noise_std, set_noise_timestep
 from sb3_maddpg.maddpg.policies import CnnPolicy, MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentQuantileCritic
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
+
+# |pre-tanh| above atanh(0.99): the output is within 1 % of a bound of the action space
+_SATURATED_PREACTIVATION = float(np.arctanh(0.99))
 
 
 def _contains_callback(callback: BaseCallback, callback_class: type[BaseCallback]) -> bool:
@@ -79,6 +88,16 @@ class MADDPG(OffPolicyAlgorithm):
     :param actor_reg: weight of the penalty on the actors' squared pre-tanh outputs, added to each actor loss.
         It keeps the tanh away from saturation, where its gradient vanishes and an actor can get stuck at a bound
         of the action space (the MADDPG authors' implementation uses 1e-3); 0, the default, turns it off
+    :param policy_delay: the actors and the target networks are updated once every ``policy_delay`` critic
+        updates (TD3's delayed policy update; 1, the default, updates them at every step as in MADDPG)
+    :param critic_warmup_steps: gradient steps of critic-only updates before the first actor update, so that the
+        actors start following a critic that has already fitted the data (0, the default, starts both together)
+    :param actor_learning_rate: learning rate of the actors' optimizer (a number or a schedule); None, the default,
+        uses ``learning_rate`` for actors and critics alike
+    :param max_grad_norm: if set, the gradient norm of each update (critics, then actors) is clipped to this value
+    :param target_policy_noise: standard deviation of the Gaussian noise added to the target actors' actions in the
+        critic targets (TD3's target policy smoothing; 0, the default, turns it off as in MADDPG)
+    :param target_noise_clip: limit of the absolute value of that noise
     :param share_actor: one actor shared by all agents instead of one actor per agent
     :param n_agents: number of agents; read from the env's ``n_agents`` attribute when None
     :param stats_window_size: window size of the rollout logging (episodes)
@@ -119,6 +138,12 @@ class MADDPG(OffPolicyAlgorithm):
         replay_buffer_kwargs: dict[str, Any] | None = None,
         cvar_alpha: float = 1.0,
         actor_reg: float = 0.0,
+        policy_delay: int = 1,
+        critic_warmup_steps: int = 0,
+        actor_learning_rate: float | Schedule | None = None,
+        max_grad_norm: float | None = None,
+        target_policy_noise: float = 0.0,
+        target_noise_clip: float = 0.5,
         share_actor: bool = False,
         n_agents: int | None = None,
         stats_window_size: int = 100,
@@ -145,6 +170,29 @@ class MADDPG(OffPolicyAlgorithm):
             raise ValueError("share_actor is an argument of MADDPG, not a policy kwarg: use MADDPG(..., share_actor=True)")
         if isinstance(actor_reg, bool) or not isinstance(actor_reg, int | float) or not actor_reg >= 0.0:
             raise ValueError(f"actor_reg must be a number >= 0 (0 turns the penalty off), got {actor_reg!r}")
+        for name, value, minimum in (("policy_delay", policy_delay, 1), ("critic_warmup_steps", critic_warmup_steps, 0)):
+            if isinstance(value, bool) or not isinstance(value, Integral) or value < minimum:
+                raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+        if max_grad_norm is not None and (
+            isinstance(max_grad_norm, bool) or not isinstance(max_grad_norm, Real) or not 0.0 < max_grad_norm < float("inf")
+        ):
+            raise ValueError(f"max_grad_norm must be None (no clipping) or a finite number > 0, got {max_grad_norm!r}")
+        for name, value in (("target_policy_noise", target_policy_noise), ("target_noise_clip", target_noise_clip)):
+            if isinstance(value, bool) or not isinstance(value, Real) or not 0.0 <= value < float("inf"):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if (
+            actor_learning_rate is not None
+            and not callable(actor_learning_rate)
+            and (
+                isinstance(actor_learning_rate, bool)
+                or not isinstance(actor_learning_rate, Real)
+                or not actor_learning_rate > 0.0
+            )
+        ):
+            raise ValueError(
+                f"actor_learning_rate must be None (same as learning_rate), a number > 0 or a schedule, "
+                f"got {actor_learning_rate!r}"
+            )
         if isinstance(env, ParallelEnv):
             raise TypeError(
                 "MADDPG takes an SB3 VecEnv with one row per agent, not a PettingZoo ParallelEnv: "
@@ -180,6 +228,12 @@ class MADDPG(OffPolicyAlgorithm):
         )
         self.cvar_alpha = float(cvar_alpha)
         self.actor_reg = float(actor_reg)
+        self.policy_delay = int(policy_delay)
+        self.critic_warmup_steps = int(critic_warmup_steps)
+        self.actor_learning_rate = actor_learning_rate
+        self.max_grad_norm = None if max_grad_norm is None else float(max_grad_norm)
+        self.target_policy_noise = float(target_policy_noise)
+        self.target_noise_clip = float(target_noise_clip)
         self.share_actor = share_actor
         self.n_agents: int | None = n_agents
         self.agent_names: list[str] | None = None
@@ -232,6 +286,9 @@ class MADDPG(OffPolicyAlgorithm):
         if self.agent_names is None:
             self.agent_names = [f"agent_{i}" for i in range(self.n_agents)]
         self._setup_lr_schedule()
+        self.actor_lr_schedule = (
+            self.lr_schedule if self.actor_learning_rate is None else FloatSchedule(self.actor_learning_rate)
+        )
         self.set_random_seed(self.seed)
 
         if self.replay_buffer_class is None:
@@ -295,6 +352,11 @@ class MADDPG(OffPolicyAlgorithm):
         with th.no_grad():
             # Target distribution (SPEC 2): r_i + gamma (1 - d) Z_i'(o', a'), a'_j = mu_j'(o'_j) from the target actors
             next_actions = self.actor_target(replay_data.next_observations)  # (B, N, A)
+            if self.target_policy_noise > 0.0:
+                # TD3's target policy smoothing: the target is the critic's value around the target action
+                noise = next_actions.new_empty(next_actions.shape).normal_(0.0, self.target_policy_noise)
+                noise = noise.clamp(-self.target_noise_clip, self.target_noise_clip)
+                next_actions = (next_actions + noise).clamp(-1.0, 1.0)
             next_quantiles = self.critic_target(replay_data.next_observations, next_actions)  # (B, N, n_q)
             not_done = 1.0 - replay_data.dones.unsqueeze(-1)  # (B, 1, 1): terminations only, not truncations
             target_quantiles = replay_data.rewards.unsqueeze(-1) + not_done * self.gamma * next_quantiles
@@ -306,16 +368,21 @@ class MADDPG(OffPolicyAlgorithm):
         loss = quantile_huber_loss(current_quantiles, target_quantiles).mean(dim=0)  # (N,)
         return loss, current_quantiles, features
 
-    def actor_loss(self, replay_data: MultiAgentReplayBufferSamples, features: th.Tensor) -> th.Tensor:
+    def actor_loss(
+        self, replay_data: MultiAgentReplayBufferSamples, features: th.Tensor, preactivations: th.Tensor | None = None
+    ) -> th.Tensor:
         """
         Per-agent actor loss: -CVaR_alpha(Z_i(o, a)) where a_i = mu_i(o_i) and a_j (j != i) come from the batch,
         plus ``actor_reg`` times the mean squared pre-tanh output of actor i.
 
         :param replay_data: a batch of joint transitions
         :param features: critic-side encodings of ``replay_data.observations``, (B, N, F) (treated as constants)
+        :param preactivations: the actors' pre-tanh outputs on ``replay_data.observations`` (B, N, A), if already
+            computed; computed here otherwise
         :return: loss of each agent, (N,); loss i depends only on actor i's output
         """
-        preactivations = self.actor.preactivations(replay_data.observations)  # (B, N, A)
+        if preactivations is None:
+            preactivations = self.actor.preactivations(replay_data.observations)  # (B, N, A)
         policy_actions = th.tanh(preactivations)
         n_agents = policy_actions.shape[1]
         # mixed[b, i, j] = mu_j(o_j) if i == j else a_j from the batch: the joint action critic i scores
@@ -325,13 +392,20 @@ class MADDPG(OffPolicyAlgorithm):
         regularisation = preactivations.pow(2).mean(dim=(0, 2))  # (N,)
         return -cvar(quantiles, self.cvar_alpha).mean(dim=0) + self.actor_reg * regularisation
 
+    def _clip_gradients(self, module: th.nn.Module) -> None:
+        if self.max_grad_norm is not None:
+            th.nn.utils.clip_grad_norm_(module.parameters(), self.max_grad_norm)
+
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         # Switch to train mode (this affects batch norm / dropout)
         self.policy.set_training_mode(True)
-        self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
+        self._update_learning_rate([self.critic.optimizer])
+        actor_lr = self.actor_lr_schedule(self._current_progress_remaining)
+        update_learning_rate(self.actor.optimizer, actor_lr)
+        self.logger.record("train/actor_learning_rate", actor_lr)
         assert self.replay_buffer is not None
 
-        critic_losses, actor_losses, q_means, cvars = [], [], [], []
+        critic_losses, actor_losses, q_means, cvars, saturations, preactivation_sizes = [], [], [], [], [], []
         for _ in range(gradient_steps):
             self._n_updates += 1
             replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
@@ -340,14 +414,30 @@ class MADDPG(OffPolicyAlgorithm):
             critic_loss, current_quantiles, features = self.critic_loss(replay_data)
             self.critic.optimizer.zero_grad()
             critic_loss.sum().backward()
+            self._clip_gradients(self.critic)
             self.critic.optimizer.step()
+            with th.no_grad():
+                critic_losses.append(critic_loss.detach())
+                q_means.append(current_quantiles.mean(dim=(0, 2)))
+                cvars.append(cvar(current_quantiles, self.cvar_alpha).mean(dim=0))
 
-            # Actors, after the critic step as in TD3: actor i maximises CVaR_alpha of Z_i with a_i = mu_i(o_i).
-            # The encodings of this step's observations are reused (detached) instead of encoding them again.
-            actor_loss = self.actor_loss(replay_data, features.detach())
-            self.actor.optimizer.zero_grad()
-            actor_loss.sum().backward(inputs=list(self.actor.parameters()))
-            self.actor.optimizer.step()
+            # Actors and targets once every policy_delay critic updates (TD3); no actor update during the warm-up
+            if self._n_updates % self.policy_delay != 0:
+                continue
+            if self._n_updates > self.critic_warmup_steps:
+                # Actor i maximises CVaR_alpha of Z_i with a_i = mu_i(o_i), after the critic step as in TD3.
+                # The encodings of this step's observations are reused (detached) instead of encoding them again.
+                preactivations = self.actor.preactivations(replay_data.observations)
+                actor_loss = self.actor_loss(replay_data, features.detach(), preactivations)
+                self.actor.optimizer.zero_grad()
+                actor_loss.sum().backward(inputs=list(self.actor.parameters()))
+                self._clip_gradients(self.actor)
+                self.actor.optimizer.step()
+                with th.no_grad():
+                    actor_losses.append(actor_loss.detach())
+                    # Saturation: where tanh passes (almost) no gradient, an actor can get stuck at a bound
+                    saturations.append((preactivations.abs() > _SATURATED_PREACTIVATION).float().mean(dim=(0, 2)))
+                    preactivation_sizes.append(preactivations.abs().mean(dim=(0, 2)))
 
             # Soft target updates; BatchNorm running statistics are copied (see SB3 GH issue #996)
             polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
@@ -355,26 +445,22 @@ class MADDPG(OffPolicyAlgorithm):
             polyak_update(self.critic_batch_norm_stats, self.critic_batch_norm_stats_target, 1.0)
             polyak_update(self.actor_batch_norm_stats, self.actor_batch_norm_stats_target, 1.0)
 
-            with th.no_grad():
-                critic_losses.append(critic_loss.detach())
-                actor_losses.append(actor_loss.detach())
-                q_means.append(current_quantiles.mean(dim=(0, 2)))
-                cvars.append(cvar(current_quantiles, self.cvar_alpha).mean(dim=0))
-
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         if gradient_steps == 0:
             return
-        # One device-to-host transfer for all statistics: (4, N)
-        stats = th.stack([th.stack(values).mean(dim=0) for values in (critic_losses, actor_losses, q_means, cvars)])
-        stats_np = stats.cpu().numpy()
+        # One device-to-host transfer for all statistics: (k, N)
+        columns = [critic_losses, q_means, cvars]
+        names = ["critic_loss", "q_mean", "cvar"]
+        if actor_losses:
+            columns += [actor_losses, saturations, preactivation_sizes]
+            names += ["actor_loss", "actor_saturation", "actor_preactivation"]
+        stats_np = th.stack([th.stack(values).mean(dim=0) for values in columns]).cpu().numpy()
         assert self.agent_names is not None
-        for i, name in enumerate(self.agent_names):
-            self.logger.record(f"train/critic_loss_{name}", float(stats_np[0, i]))
-            self.logger.record(f"train/actor_loss_{name}", float(stats_np[1, i]))
-            self.logger.record(f"train/q_mean_{name}", float(stats_np[2, i]))
-            self.logger.record(f"train/cvar_{name}", float(stats_np[3, i]))
-        self.logger.record("train/critic_loss", float(stats_np[0].mean()))
-        self.logger.record("train/actor_loss", float(stats_np[1].mean()))
+        for row, key in enumerate(names):
+            for i, name in enumerate(self.agent_names):
+                self.logger.record(f"train/{key}_{name}", float(stats_np[row, i]))
+            if key in ("critic_loss", "actor_loss", "actor_saturation"):
+                self.logger.record(f"train/{key}", float(stats_np[row].mean()))
         noise_std = current_noise_std(self.action_noise)
         if noise_std is not None:
             self.logger.record("train/noise_std", noise_std)
@@ -420,7 +506,8 @@ class MADDPG(OffPolicyAlgorithm):
         callback.on_rollout_start()
         continue_training = True
         while should_collect_more_steps(train_freq, num_collected_steps, num_collected_episodes):
-            # Select action randomly or according to policy
+            # Select action randomly or according to policy; the noise schedule follows the timestep counter
+            set_noise_timestep(action_noise, self.num_timesteps)
             actions, buffer_actions = self._sample_action(learning_starts, action_noise, env.num_envs)
 
             # Rescale and perform action

@@ -150,4 +150,7 @@ def check_env_kwargs(env_id: str, env_kwargs: dict[str, Any] | None, flag: str =
 # CNN) and an MPE2 task with continuous actions, to show nothing is tied to the UAV env.
 register_multiagent_env("uav_coverage_v0", "sb3_maddpg_envs.uav_coverage_v0:parallel_env")
 register_multiagent_env("uav_coverage_fast_v0", "sb3_maddpg_envs.uav_coverage_v0:parallel_env", {"obs_size": 16})
+# Version 1 (the same simulation with the defaults that learn) and its CPU variant: the same task at 1 pixel per cell.
+register_multiagent_env("uav_coverage_v1", "sb3_maddpg_envs.uav_coverage_v1:parallel_env")
+register_multiagent_env("uav_coverage_cpu_v1", "sb3_maddpg_envs.uav_coverage_v1:parallel_env", {"obs_size": 16})
 register_multiagent_env("simple_spread_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": True})

@@ -1,0 +1,68 @@
+"""
+# UAV coverage, version 1
+
+The simulation of `uav_coverage_v0` (the report's task) with other defaults, chosen so that a team of MADDPG agents
+can learn it. Every difference is an env parameter that v0 also accepts, so any v1 rule can be switched back; the
+metrics (c_T, f_T, e_T, eta_T), the baselines and the evaluation protocol are the same, so results on v0 and v1
+compare directly. `docs/environment.md` lists each difference with the reason and the measurements behind it.
+
+| parameter | v0 | v1 |
+|---|---|---|
+| `action_mode` | `"polar"` | `"cartesian"`: (dx, dy) = (2a - 1) l_max, a = (0.5, 0.5) hovers |
+| `wall_mode` | `"refuse"` | `"clip"`: stop at the boundary, charged `wall_penalty` x overshoot / l_max |
+| `wall_penalty` | 10 | 1 |
+| `reward_mode` | `"report"` | `"coverage"`: each UAV's share of the step's fairness-weighted coverage, minus its energy |
+| `comm_penalty` | 1 | 0.1 |
+| `start` | `"fixed"` | `"random"`: new start positions every episode, as in the evaluation |
+
+```python
+uav_coverage_v1.parallel_env(**V1_DEFAULTS, obs_size=16)   # any parameter of v0 can be given
+```
+"""
+
+from typing import Any
+
+from pettingzoo.utils.env import AECEnv
+
+from sb3_maddpg_envs.uav_coverage import uav_coverage
+
+__all__ = ["V1_DEFAULTS", "env", "parallel_env", "raw_env"]
+
+#: Where v1's defaults differ from v0's (the other parameters keep v0's defaults).
+V1_DEFAULTS: dict[str, Any] = {
+    "action_mode": "cartesian",
+    "wall_mode": "clip",
+    "wall_penalty": 1.0,
+    "reward_mode": "coverage",
+    "fairness_coef": 0.5,
+    "energy_coef": 0.5,
+    "comm_penalty": 0.1,
+    "start": "random",
+}
+
+
+def parallel_env(**kwargs: Any) -> uav_coverage.UAVCoverageEnv:
+    """
+    The environment as a PettingZoo ``ParallelEnv``, with v1's defaults.
+
+    :param kwargs: ``render_mode`` and any parameter of ``UAVCoverageCore``; they override v1's defaults
+    """
+    return uav_coverage.UAVCoverageEnv(**{**V1_DEFAULTS, **kwargs}, name="uav_coverage_v1")
+
+
+def raw_env(**kwargs: Any) -> AECEnv:
+    """
+    The environment as an AEC env (PettingZoo's ``parallel_to_aec``), without wrappers, with v1's defaults.
+
+    :param kwargs: as for :func:`parallel_env`
+    """
+    return uav_coverage.parallel_to_aec(parallel_env(**kwargs))
+
+
+def env(**kwargs: Any) -> AECEnv:
+    """
+    The environment as a wrapped AEC env (order enforcing), with v1's defaults.
+
+    :param kwargs: as for :func:`parallel_env`
+    """
+    return uav_coverage.wrappers.OrderEnforcingWrapper(raw_env(**kwargs))

@@ -150,7 +150,7 @@ class MultiAgentExperimentManager(ExperimentManager):
         self, hyperparams: dict[str, Any], saved_hyperparams: dict[str, Any], env: VecEnv
     ) -> dict[str, Any]:
         # RL Zoo knows "normal" and "ornstein-uhlenbeck"; "decaying-normal" is the report's schedule
-        # (noise_std decaying geometrically towards noise_final_std by noise_decay per VecEnv step).
+        # (noise_std decaying geometrically towards noise_final_std by noise_decay per timestep).
         if hyperparams.get("noise_type") == DECAYING_NOISE:
             from sb3_maddpg.common.noise import DecayingGaussianNoise
 

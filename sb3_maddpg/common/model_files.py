@@ -80,7 +80,8 @@ def read_maddpg_data(source: str | os.PathLike | io.BufferedIOBase, keys: tuple[
             except READ_ERRORS as error:
                 raise ValueError(f"{name} is damaged: its 'data' member is not valid JSON ({error})") from error
         if not isinstance(raw, dict) or any(key not in raw for key in MADDPG_KEYS):
-            raise ValueError(f"{name} is not a MADDPG model: it was saved by {_saved_by(raw if isinstance(raw, dict) else {})}")
+            saved_by = _saved_by(raw if isinstance(raw, dict) else {})
+            raise ValueError(f"{name} is not a MADDPG model: it was saved by {saved_by}")
         try:
             return json_to_data(json.dumps({key: raw[key] for key in keys if key in raw}))
         except Exception as error:

@@ -27,9 +27,7 @@ def check_int(name: str, value: Any, minimum: int | None = None) -> int:
     return int(value)
 
 
-def check_number(
-    name: str, value: Any, low: float | None = None, high: float | None = None, low_open: bool = False
-) -> float:
+def check_number(name: str, value: Any, low: float | None = None, high: float | None = None, low_open: bool = False) -> float:
     """
     A finite real number in ``[low, high]`` (``(low, high]`` with ``low_open``).
 
@@ -116,9 +114,7 @@ def check_net_arch(value: Any) -> None:
     if isinstance(value, dict):
         unknown = sorted(set(value) - {"pi", "qf"})
         if unknown or not {"pi", "qf"} <= set(value):
-            raise ValueError(
-                f"net_arch as a dict must have exactly the keys 'pi' (actors) and 'qf' (critics), got {value!r}"
-            )
+            raise ValueError(f"net_arch as a dict must have exactly the keys 'pi' (actors) and 'qf' (critics), got {value!r}")
         for key in ("pi", "qf"):
             _check_layer_sizes(f"net_arch[{key!r}]", value[key])
         return
@@ -130,8 +126,7 @@ def _check_layer_sizes(name: str, sizes: Any) -> None:
         isinstance(size, Integral) and not isinstance(size, bool) and size >= 1 for size in sizes
     ):
         raise ValueError(
-            f"{name} must be a list of hidden layer sizes, each an integer >= 1 (e.g. [64, 64]; [] for none), "
-            f"got {sizes!r}"
+            f"{name} must be a list of hidden layer sizes, each an integer >= 1 (e.g. [64, 64]; [] for none), got {sizes!r}"
         )
 
 

@@ -1,8 +1,8 @@
 """From a PettingZoo ParallelEnv to an SB3 VecEnv with one row per agent and environment copy."""
 
-from copy import deepcopy
 import time
 from collections.abc import Callable
+from copy import deepcopy
 from numbers import Integral
 from typing import Any
 
@@ -329,8 +329,7 @@ def make_multiagent_vec_env(
     """
     if not callable(env_fn) or isinstance(env_fn, ParallelEnv):
         raise TypeError(
-            f"env_fn must be a function returning a PettingZoo ParallelEnv (e.g. uav_coverage_v0.parallel_env), "
-            f"got {env_fn!r}"
+            f"env_fn must be a function returning a PettingZoo ParallelEnv (e.g. uav_coverage_v0.parallel_env), got {env_fn!r}"
         )
     if isinstance(n_envs, bool) or not isinstance(n_envs, Integral) or n_envs < 1:
         raise ValueError(f"n_envs must be an integer >= 1 (environment copies), got {n_envs!r}")

@@ -10,8 +10,8 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, Flatten
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
-from sb3_maddpg.common.validation import check_policy_arguments
 from sb3_maddpg.common.torch_layers import BatchedMlp, MultiAgentFeatures, ReportCNN
+from sb3_maddpg.common.validation import check_policy_arguments
 
 
 class MultiAgentActor(nn.Module):

@@ -4,7 +4,7 @@ Atomic file writes: a reader (or a crash) sees either the old file or the new on
 Every file is written to a temporary file in the same folder, flushed to disk, then moved into place with
 ``os.replace`` (atomic on POSIX and Windows when both paths are on one file system). A write interrupted by an
 exception, Ctrl-C or ``SIGKILL`` leaves the previous file untouched; after a ``SIGKILL`` the temporary file
-(``.<name>.<pid>.<random>.tmp``) may remain beside it.
+(``.<stem>.<pid>.<random>.tmp<suffix>``) may remain beside it.
 """
 
 import os
@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from typing import IO, Any
 
-__all__ = ["atomic_open", "atomic_save", "atomic_write_text", "check_writable_folder", "save_path_with_suffix"]
+__all__ = ["atomic_open", "atomic_path", "atomic_save", "atomic_write_text", "check_writable_folder", "save_path_with_suffix"]
 
 
 def _fsync_folder(folder: str) -> None:
@@ -27,12 +27,42 @@ def _fsync_folder(folder: str) -> None:
             os.close(fd)
 
 
+def _fsync_file(path: str) -> None:
+    with open(path, "rb") as file:
+        os.fsync(file.fileno())
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[pathlib.Path]:
+    """
+    A temporary path beside ``path`` for any writer that takes a path (``savefig``, ``Image.save``, ...); when the
+    block ends without an exception, the file written there is synced and moved onto ``path``. On any exception
+    (``KeyboardInterrupt`` included) it is removed and ``path`` keeps its previous content. The temporary name keeps
+    the suffix of ``path``, so writers that choose the format from the suffix choose the same one.
+
+    :param path: the final file; its folder must exist
+    :return: the temporary path to write
+    """
+    path = os.path.abspath(os.fspath(path))
+    folder, name = os.path.split(path)
+    stem, suffix = os.path.splitext(name)
+    temporary = os.path.join(folder, f".{stem}.{os.getpid()}.{secrets.token_hex(4)}.tmp{suffix}")
+    try:
+        yield pathlib.Path(temporary)
+        _fsync_file(temporary)
+        os.replace(temporary, path)
+    except BaseException:
+        with suppress(OSError):
+            os.unlink(temporary)
+        raise
+    _fsync_folder(folder)
+
+
 @contextmanager
 def atomic_open(path: str | os.PathLike, mode: str = "wb", **open_kwargs: Any) -> Iterator[IO[Any]]:
     """
-    Open a temporary file beside ``path`` for writing; when the block ends without an exception, the file is flushed,
-    synced and moved onto ``path``. On any exception (``KeyboardInterrupt`` included) the temporary file is removed
-    and ``path`` keeps its previous content.
+    Open a temporary file beside ``path`` for writing; when the block ends without an exception, the file is synced
+    and moved onto ``path`` (see :func:`atomic_path`).
 
     :param path: the final file; its folder must exist
     :param mode: a write mode of ``open`` (``"wb"``, ``"w"``)
@@ -41,22 +71,9 @@ def atomic_open(path: str | os.PathLike, mode: str = "wb", **open_kwargs: Any) -
     """
     if "w" not in mode:
         raise ValueError(f"atomic_open writes whole files: mode must contain 'w', got {mode!r}")
-    path = os.path.abspath(os.fspath(path))
-    folder, name = os.path.split(path)
-    temporary = os.path.join(folder, f".{name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
     # "x": a new file, created with the usual permissions (the umask applies, as for the file it replaces)
-    file = open(temporary, mode.replace("w", "x"), **open_kwargs)
-    try:
-        with file:
-            yield file
-            file.flush()
-            os.fsync(file.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        with suppress(OSError):
-            os.unlink(temporary)
-        raise
-    _fsync_folder(folder)
+    with atomic_path(path) as temporary, open(temporary, mode.replace("w", "x"), **open_kwargs) as file:
+        yield file
 
 
 def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> pathlib.Path:
@@ -117,7 +134,8 @@ def atomic_save(
 
 def check_writable_folder(folder: str | os.PathLike, what: str) -> pathlib.Path:
     """
-    Create ``folder`` if needed and check that files can be created in it, before any work is done.
+    Check, before any work is done, that files can be written in ``folder``: it is a folder where files can be
+    created, or it does not exist yet and its nearest existing parent is one. Nothing is created.
 
     :param folder: the output folder
     :param what: how to name it in the message (e.g. ``"--out"``)
@@ -125,11 +143,17 @@ def check_writable_folder(folder: str | os.PathLike, what: str) -> pathlib.Path:
     :raises ValueError: one line naming the folder and the reason
     """
     target = pathlib.Path(folder)
+    existing = target
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if existing == target and not target.is_dir():
+        raise ValueError(f"{what}: {os.fspath(target)} exists and is not a folder")
+    if existing != target and not existing.is_dir():
+        raise ValueError(f"{what}: cannot create the folder {os.fspath(target)}: {os.fspath(existing)} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"{what}: cannot write to the folder {os.fspath(target)} ({os.fspath(existing)}: permission denied)")
+    probe = existing / f".write-test.{os.getpid()}.{secrets.token_hex(4)}"
     try:
-        if target.exists() and not target.is_dir():
-            raise ValueError(f"{what}: {os.fspath(target)} exists and is not a folder")
-        target.mkdir(parents=True, exist_ok=True)
-        probe = target / f".write-test.{os.getpid()}.{secrets.token_hex(4)}"
         probe.touch(exist_ok=False)
         probe.unlink()
     except OSError as error:

@@ -64,6 +64,9 @@ def read_maddpg_data(source: str | os.PathLike | io.BufferedIOBase, keys: tuple[
         try:
             archive = zipfile.ZipFile(opened)
         except zipfile.BadZipFile as error:
+            opened.seek(start)
+            if opened.read(4) == b"PK\x03\x04":
+                raise ValueError(f"{name} is damaged: it is a truncated or corrupted zip file") from error
             raise ValueError(f"{name} is not a MADDPG model: it is not a zip file (SB3 saves models as .zip)") from error
         with archive:
             try:

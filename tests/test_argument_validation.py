@@ -60,7 +60,9 @@ BAD_POLICY_KWARGS = [
 ]
 
 
-@pytest.mark.parametrize(("policy_kwargs", "error", "message"), BAD_POLICY_KWARGS, ids=[str(k) for k, _, _ in BAD_POLICY_KWARGS])
+@pytest.mark.parametrize(
+    ("policy_kwargs", "error", "message"), BAD_POLICY_KWARGS, ids=[str(k) for k, _, _ in BAD_POLICY_KWARGS]
+)
 def test_bad_policy_argument_is_refused_naming_it(policy_kwargs, error, message) -> None:
     with pytest.raises(error, match=message):
         MADDPG("MlpPolicy", make_multiagent_vec_env(TargetReachEnv), policy_kwargs=policy_kwargs)
@@ -92,7 +94,9 @@ BAD_VEC_ENV_ARGUMENTS = [
 ]
 
 
-@pytest.mark.parametrize(("kwargs", "error", "message"), BAD_VEC_ENV_ARGUMENTS, ids=[str(k) for k, _, _ in BAD_VEC_ENV_ARGUMENTS])
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"), BAD_VEC_ENV_ARGUMENTS, ids=[str(k) for k, _, _ in BAD_VEC_ENV_ARGUMENTS]
+)
 def test_bad_vec_env_argument_is_refused_naming_it(kwargs, error, message) -> None:
     arguments = {"env_fn": TargetReachEnv, **kwargs}
     with pytest.raises(error, match=message):

@@ -15,7 +15,9 @@ ENV_KWARGS = dict(obs_size=16, max_cycles=5)
 
 
 def uav_env(n_uavs: int, n_envs: int = 1):
-    return make_multiagent_vec_env(uav_coverage_v0.parallel_env, n_envs=n_envs, seed=0, env_kwargs=dict(ENV_KWARGS, n_uavs=n_uavs))
+    return make_multiagent_vec_env(
+        uav_coverage_v0.parallel_env, n_envs=n_envs, seed=0, env_kwargs=dict(ENV_KWARGS, n_uavs=n_uavs)
+    )
 
 
 def tiny_model(env) -> MADDPG:

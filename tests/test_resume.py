@@ -151,7 +151,9 @@ def _filled_buffer(n_copies: int, n_agents: int = 2, steps: int = 13, episode: i
 
     obs_space = spaces.Box(0, 255, (3,), np.float32)
     act_space = spaces.Box(-1, 1, (2,), np.float32)
-    buffer = MultiAgentReplayBuffer(capacity, obs_space, act_space, device="cpu", n_envs=n_copies * n_agents, n_agents=n_agents)
+    buffer = MultiAgentReplayBuffer(
+        capacity, obs_space, act_space, device="cpu", n_envs=n_copies * n_agents, n_agents=n_agents
+    )
     transitions = {}
     for step in range(steps):
         obs = np.array([[copy, step, agent] for copy in range(n_copies) for agent in range(n_agents)], np.float32)

@@ -64,9 +64,9 @@ def test_without_the_saved_random_states_the_resumed_run_differs(tmp_path: Path,
     """The exactness above comes from the saved states: reseeding from the saved seed (SB3's load) is not enough."""
     import sb3_maddpg.maddpg.maddpg as maddpg_module
 
-    uninterrupted = tiny_model(tiny_env())
+    uninterrupted = tiny_model(tiny_env(), train_freq=4)
     uninterrupted.learn(200)
-    first = tiny_model(tiny_env())
+    first = tiny_model(tiny_env(), train_freq=4)
     first.learn(100)
     first.save(tmp_path / "model.zip")
     first.save_replay_buffer(tmp_path / "buffer.pkl")

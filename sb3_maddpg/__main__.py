@@ -86,6 +86,8 @@ def _zoo_preparser(command: str) -> argparse.ArgumentParser:
         parser.add_argument("--load-checkpoint", type=int)
         parser.add_argument("--load-last-checkpoint", action="store_true")
     else:
+        parser.add_argument("-n", "--n-timesteps", type=int)
+        parser.add_argument("-tb", "--tensorboard-log", default="")
         parser.add_argument("-conf", "--conf-file")
         parser.add_argument("--eval-env-kwargs", nargs="+")
         parser.add_argument("-params", "--hyperparams", nargs="+")
@@ -131,6 +133,39 @@ def _check_config(config: str, env_id: str) -> None:
         raise UsageError(f"{config} has no entry for {env_id!r}; its entries: {', '.join(map(str, entries))}")
 
 
+def _check_writable(folder: str, flag: str) -> None:
+    from sb3_maddpg.common.atomic import check_writable_folder
+
+    try:
+        check_writable_folder(folder, flag)
+    except ValueError as error:
+        raise UsageError(str(error)) from error
+
+
+def _check_model_fits_env(model_path: str, env_id: str, env_kwargs: dict[str, Any] | None) -> None:
+    """The check ``evaluate`` makes, for ``enjoy``: the run's env kwargs (as enjoy reads them) and ``--env-kwargs``."""
+    from sb3_maddpg.evaluation.report import ModelEnvMismatchError, check_model_fits_env, find_run_config
+
+    _, run_env_kwargs = find_run_config(model_path)
+    try:
+        check_model_fits_env(model_path, env_id, {**run_env_kwargs, **(env_kwargs or {})})
+    except ModelEnvMismatchError as error:
+        raise UsageError(f"{model_path}: {error}") from error
+
+
+def require_rl_zoo(command: str) -> None:
+    """
+    :param command: ``train``, ``optimize`` or ``enjoy``
+    :raises UsageError: when RL Zoo (the ``zoo`` extra) is not installed
+    """
+    try:
+        importlib.import_module("rl_zoo3")
+    except ImportError as error:
+        raise UsageError(
+            f'{command} runs RL Zoo, which is not installed ({error}); install the zoo extra: pip install "sb3_maddpg[zoo]"'
+        ) from error
+
+
 def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     """
     Check what can be checked before RL Zoo runs and add this command's defaults.
@@ -169,7 +204,7 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         from rl_zoo3.utils import get_model_path
 
         try:
-            get_model_path(
+            _, model_path, _ = get_model_path(
                 args.exp_id,
                 args.folder,
                 args.algo,
@@ -180,8 +215,18 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
             )
         except (AssertionError, ValueError) as error:
             raise UsageError(f"no trained model to load: {error} (train one first, or pass -f LOG_FOLDER)") from error
+        if args.algo == DEFAULT_ALGO and is_multiagent_env(args.env):
+            _check_model_fits_env(model_path, args.env, env_kwargs)
         return argv
 
+    if args.n_timesteps is not None and args.n_timesteps <= 0:
+        raise UsageError(
+            f"-n/--n-timesteps must be a positive number of timesteps, got {args.n_timesteps} "
+            "(leave it out to train the YAML entry's n_timesteps)"
+        )
+    for flag, folder in (("-f/--log-folder", args.log_folder), ("-tb/--tensorboard-log", args.tensorboard_log)):
+        if folder:
+            _check_writable(folder, flag)
     eval_env_kwargs = parse_key_values(args.eval_env_kwargs, "--eval-env-kwargs")
     if eval_env_kwargs is not None and is_multiagent_env(args.env):
         check_env_kwargs(args.env, eval_env_kwargs, flag="--eval-env-kwargs")
@@ -226,6 +271,7 @@ def run_zoo_command(command: str, argv: list[str]) -> None:
     :param command: ``train``, ``optimize`` or ``enjoy``
     :param argv: RL Zoo's arguments
     """
+    require_rl_zoo(command)
     from sb3_maddpg.zoo import integration
 
     integration.register_with_rl_zoo()
@@ -262,6 +308,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
         raise UsageError(f"unknown env {env_id!r}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
     env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs") or {}
     check_env_kwargs(env_id, {**run_env_kwargs, "start": "random", **env_kwargs}, flag="--env-kwargs")
+    _check_writable(args.out, "--out")
     try:
         evaluate_and_report(
             args.out,
@@ -291,6 +338,7 @@ def run_plot(args: argparse.Namespace) -> None:
         raise UsageError(f"--log: {args.log} not found")
     if args.window is not None and args.window < 1:
         raise UsageError(f"--window must be >= 1, got {args.window}")
+    _check_writable(args.out, "--out")
     try:
         paths = plot_training_logs(args.log, args.out, window=args.window)
     except FileNotFoundError as error:

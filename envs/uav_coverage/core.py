@@ -26,6 +26,10 @@ import numpy as np
 __all__ = ["UAVCoverageCore", "load_poi_image", "pois_from_image"]
 
 _TWO_PI = 2.0 * math.pi
+# Bounds of every real parameter: with them, squared ranges, energies times distances, rewards times reward_scale and
+# quotients by eps stay finite and non-zero, so every accepted configuration runs.
+_MAX_REAL = 1e12
+_MIN_POSITIVE = 1e-12
 
 #: The rules a v1 env may switch; the first of each is the report's (``uav_coverage_v0``).
 ACTION_MODES = ("polar", "cartesian")
@@ -62,6 +66,13 @@ def _check_real(
         if high is not None:
             accepted += f" and {'<=' if high_inclusive else '<'} {high:g}"
         raise ValueError(f"{name} must be {accepted}, got {value!r}")
+    if abs(float(value)) > _MAX_REAL or (low == 0.0 and not low_inclusive and float(value) < _MIN_POSITIVE):
+        lowest, highest = (0.0 if low_inclusive else _MIN_POSITIVE), (_MAX_REAL if high is None else high)
+        interval = f"[{lowest:g}, {highest:g}{']' if high is None else ')'}"
+        raise ValueError(
+            f"{name} must lie in {interval} (beyond, the simulation's squares, products and quotients overflow "
+            f"or divide by zero), got {value!r}"
+        )
     return float(value)
 
 
@@ -90,13 +101,19 @@ def _check_points(name: str, value: Any, n_rows: int | None, map_size: int) -> n
 # ---------------------------------------------------------------------------------------------------------------------
 def load_poi_image(path: str | os.PathLike) -> np.ndarray:
     """
-    Read a PNG/JPEG (or any image Pillow reads) as a 2-D float64 grayscale array.
+    Read a PNG/JPEG (or any image Pillow reads) as a 2-D float64 grayscale array, at the image's own depth.
+
+    8-bit images give their luminance (0-255); 16-bit and 32-bit grayscale and float images give their values unchanged
+    (a 16-bit PNG is not cut down to 8 bits, which would saturate it). An image with an alpha channel whose colour is
+    the same everywhere (PoIs marked only by transparency) gives its alpha channel.
 
     :param path: the image file
-    :return: array of shape (H, W), the luminance of each pixel
-    :raises ValueError: if the file is missing or is not an image
+    :return: array of shape (H, W), the intensity of each pixel
+    :raises ValueError: if the file is missing, is a folder or is not an image
     """
     path = os.fspath(path)
+    if os.path.isdir(path):
+        raise ValueError(f"pois: {path!r} is a directory, not an image file (give the path of a PNG/JPEG file)")
     if not os.path.isfile(path):
         raise ValueError(
             f"pois: image file {path!r} does not exist (pois accepts 'grid', 'uniform', an array (K, 2), "
@@ -107,7 +124,14 @@ def load_poi_image(path: str | os.PathLike) -> np.ndarray:
 
     try:
         with Image.open(path) as image:
-            return np.asarray(image.convert("L"), dtype=np.float64)
+            if image.mode in ("I", "F") or image.mode.startswith("I;16"):
+                return np.asarray(image, dtype=np.float64)
+            luminance = np.asarray(image.convert("L"), dtype=np.float64)
+            if "A" in image.getbands() or (image.mode == "P" and "transparency" in image.info):
+                alpha = np.asarray(image.convert("RGBA").getchannel("A"), dtype=np.float64)
+                if luminance.min() == luminance.max() and alpha.min() != alpha.max():
+                    return alpha
+            return luminance
     except (UnidentifiedImageError, OSError) as error:
         raise ValueError(f"pois: file {path!r} is not an image Pillow can read ({error})") from error
 

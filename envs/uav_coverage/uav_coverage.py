@@ -66,6 +66,11 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
         return self._action_spaces[agent]
 
     @property
+    def np_random(self) -> np.random.Generator | None:
+        """The generator the episodes draw from (seeded by ``reset(seed=...)``); None before the first reset."""
+        return self.core._rng
+
+    @property
     def max_cycles(self) -> int:
         """T, steps per episode (PettingZoo's test helpers set it)."""
         return self.core.max_cycles

@@ -273,3 +273,64 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         if kept.any():
             next_obs[kept] = self.extra_next_observations[extra[kept]]
         return next_obs
+
+    def stored_transitions(self) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Where the stored joint transitions are, oldest first within each copy, copy after copy.
+
+        :return: slots and copies, each of shape (n_stored * n_copies,)
+        """
+        n_stored = self.buffer_size if self.full else self.pos
+        start = self.pos if self.full else 0
+        slots = (start + np.arange(n_stored)) % self.buffer_size
+        return np.tile(slots, self.n_copies), np.repeat(np.arange(self.n_copies), n_stored)
+
+    def with_copies(self, n_copies: int, buffer_size: int | None = None) -> "MultiAgentReplayBuffer":
+        """
+        The same joint transitions laid out for another number of environment copies (to resume with more or fewer
+        copies). Each copy's history is kept in order; the histories are joined one after the other and cut into
+        ``n_copies`` equal pieces. Where a transition's successor in the new layout is not its true successor (a join
+        or a cut), its next observation is kept explicitly, so every transition is sampled as it was stored. When the
+        transitions do not fill whole slots, or exceed ``buffer_size``, the oldest are left out.
+
+        :param n_copies: the new number of copies
+        :param buffer_size: the new capacity in joint transitions (default: this buffer's)
+        :return: a new buffer (this one is unchanged)
+        """
+        if isinstance(n_copies, bool) or not isinstance(n_copies, int | np.integer) or n_copies < 1:
+            raise ValueError(f"n_copies must be an integer >= 1, got {n_copies!r}")
+        n_copies = int(n_copies)
+        capacity = self.buffer_size * self.n_copies if buffer_size is None else int(buffer_size)
+        new = MultiAgentReplayBuffer(
+            capacity,
+            self.observation_space,
+            self.action_space,
+            device=self.device,
+            n_envs=n_copies * self.n_agents,
+            optimize_memory_usage=self.optimize_memory_usage,
+            handle_timeout_termination=self.handle_timeout_termination,
+            n_agents=self.n_agents,
+        )
+        slots, copies = self.stored_transitions()
+        length = min(len(slots) // n_copies, new.buffer_size)  # slots of the new layout
+        if length == 0:
+            return new
+        keep = slice(len(slots) - length * n_copies, len(slots))
+        slots, copies = slots[keep], copies[keep]
+        # Sequence element e goes to slot e % length of copy e // length
+        new_slots = np.tile(np.arange(length), n_copies)
+        new_copies = np.repeat(np.arange(n_copies), length)
+        for name in ("observations", "actions", "rewards", "dones", "timeouts"):
+            getattr(new, name)[new_slots, new_copies] = getattr(self, name)[slots, copies]
+        # Next observations that the new layout cannot derive: explicit ones, joins of two histories, cuts
+        successor_is_true = np.zeros(len(slots), dtype=bool)
+        successor_is_true[:-1] = (copies[1:] == copies[:-1]) & (new_copies[1:] == new_copies[:-1])
+        explicit = (self.next_obs_index[slots, copies] >= 0) | ~successor_is_true
+        new.extra_next_observations = self.next_observations_of(slots[explicit], copies[explicit])
+        new.next_obs_index[new_slots[explicit], new_copies[explicit]] = np.arange(int(explicit.sum()))
+        last = np.arange(1, n_copies + 1) * length - 1
+        new.pending_next_observations[...] = self.next_observations_of(slots[last], copies[last])
+        new._has_pending = True
+        new.pos = length % new.buffer_size
+        new.full = length == new.buffer_size
+        return new

@@ -2,6 +2,8 @@
 
 import time
 from collections.abc import Callable
+from copy import deepcopy
+from numbers import Integral
 from typing import Any
 
 import numpy as np
@@ -39,6 +41,50 @@ def check_multiagent_spaces(parallel_env: ParallelEnv) -> tuple[spaces.Box, spac
     return obs_space, act_space
 
 
+class AgentRows(np.ndarray):
+    """
+    The observations of a multi-agent VecEnv: a plain ``np.ndarray`` of rows (row = copy * n_agents + agent) that also
+    carries the env's team in ``possible_agents``, so that ``MADDPG.predict`` can refuse observations of another team
+    (a 2-agent model would otherwise read 4 UAVs as 2 copies of its team). Views and slices keep the team; pickling
+    and ``np.asarray`` give a plain array.
+    """
+
+    possible_agents: tuple[str, ...] | None = None
+
+    def __array_finalize__(self, obj: Any) -> None:
+        if obj is not None:
+            self.possible_agents = getattr(obj, "possible_agents", None)
+
+    def __reduce_ex__(self, protocol: Any) -> Any:
+        # Saved as a plain array: files never refer to this class
+        return np.asarray(self).__reduce_ex__(protocol)
+
+
+def tag_team(observations: np.ndarray, possible_agents: tuple[str, ...]) -> AgentRows:
+    """
+    :param observations: a VecEnv's observation rows
+    :param possible_agents: the team, in row order inside a copy
+    :return: the same data as :class:`AgentRows` carrying the team
+    """
+    tagged = np.asarray(observations).view(AgentRows)
+    tagged.possible_agents = possible_agents
+    return tagged
+
+
+def env_generator(env: Any) -> np.random.Generator | None:
+    """
+    The random generator of a ParallelEnv, where it can be read: its ``np_random`` attribute (Gymnasium's name).
+
+    :param env: the environment
+    :return: the generator, or None
+    """
+    try:
+        generator = getattr(env, "np_random", None)
+    except Exception:  # a property that fails before the first reset
+        return None
+    return generator if isinstance(generator, np.random.Generator) else None
+
+
 class _SeparateResetInfos(BaseParallelWrapper):
     """
     Hands SuperSuit empty reset infos and keeps the real ones in ``last_reset_infos``.
@@ -53,6 +99,9 @@ class _SeparateResetInfos(BaseParallelWrapper):
     def __init__(self, env: ParallelEnv) -> None:
         super().__init__(env)
         self.last_reset_infos: dict[str, dict[str, Any]] = {}
+        # How the last reset can be replayed: the seed of the last seeded reset, whether the last reset was seeded, and
+        # otherwise the generator state just before it (None where the env's generator cannot be read)
+        self.reset_record: dict[str, Any] = {"seed": None, "seeded": False, "generator": None}
 
     @property
     def possible_agents(self) -> list[str]:  # type: ignore[override]
@@ -71,6 +120,12 @@ class _SeparateResetInfos(BaseParallelWrapper):
         return getattr(self.env, "render_mode", None)
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        generator = env_generator(self.env)
+        self.reset_record = {
+            "seed": seed if seed is not None else self.reset_record["seed"],
+            "seeded": seed is not None,
+            "generator": None if seed is not None or generator is None else deepcopy(generator.bit_generator.state),
+        }
         observations, infos = self.env.reset(seed=seed, options=options)
         self.last_reset_infos = infos
         return observations, {agent: {} for agent in observations}
@@ -90,7 +145,10 @@ class MultiAgentVecEnv(VecEnvWrapper):
     - keeps the final step's infos at an episode end and puts the infos of the automatic reset in ``reset_infos``
       (SuperSuit would merge them, the reset's values overwriting the final step's);
     - adds SB3's episode statistics once per joint episode, in the info of the copy's agent 0 row:
-      ``{"r": team return (sum over agents and steps), "l": joint steps, "t": seconds since creation}``.
+      ``{"r": team return (sum over agents and steps), "l": joint steps, "t": seconds since creation}``;
+    - returns observations as :class:`AgentRows`, which carry the team (``possible_agents``) to ``MADDPG.predict``;
+    - can replay each copy's last reset (:meth:`reset_states`, :meth:`restore_reset_states`), which ``MADDPG`` saves
+      and restores so that a run resumed at an episode boundary continues exactly.
 
     It reads terminations and truncations from the gymnasium-level vector env inside SuperSuit's SB3 wrapper,
     because that wrapper merges them into ``dones`` and ignores seeds.
@@ -107,6 +165,7 @@ class MultiAgentVecEnv(VecEnvWrapper):
         self.n_copies = venv.num_envs // self.n_agents
         super().__init__(venv)
         self._base_seed: int | None = None
+        self._pending_reset_states: list[dict[str, Any]] | None = None
         self._episode_returns = np.zeros(self.n_copies, dtype=np.float64)
         self._episode_lengths = np.zeros(self.n_copies, dtype=np.int64)
         self._t_start = time.time()
@@ -165,17 +224,58 @@ class MultiAgentVecEnv(VecEnvWrapper):
         """Options for the next reset (the first copy's options are passed to every copy)."""
         VecEnv.set_options(self, options)
 
+    def reset_states(self) -> list[dict[str, Any]]:
+        """
+        What replays each copy's last reset: the seed of its last seeded reset, and, when its last reset was not
+        seeded (an automatic reset at an episode end), its generator state just before that reset (None where the
+        env's generator cannot be read: see :func:`env_generator`).
+
+        :return: one dict per copy
+        """
+        return [deepcopy(markov_env.par_env.reset_record) for markov_env in self._gym_vec_env.vec_envs]
+
+    def restore_reset_states(self, states: list[dict[str, Any]]) -> bool:
+        """
+        Make the next ``reset()`` replay the resets recorded by :meth:`reset_states` (of another VecEnv with the same
+        env and number of copies): each copy is reset with its recorded seed, then, if its recorded reset was not
+        seeded, its generator is set to the recorded state and it is reset again. For an env whose reset depends only
+        on its seed history and its generator (``uav_coverage``, ``start="fixed"`` or ``"random"``), the copies then
+        start exactly where the recorded ones were after their last reset.
+
+        :param states: from :meth:`reset_states`
+        :return: whether they can be replayed (same number of copies, every recorded seed known)
+        """
+        if len(states) != self.n_copies or any(state.get("seed") is None for state in states):
+            return False
+        self._pending_reset_states = deepcopy(states)
+        return True
+
+    def _replay_resets(self, states: list[dict[str, Any]], options: dict | None) -> np.ndarray:
+        observations = []
+        for markov_env, state in zip(self._gym_vec_env.vec_envs, states, strict=True):
+            obs, _ = markov_env.reset(seed=int(state["seed"]), options=options)
+            generator = env_generator(markov_env.par_env.env)
+            if not state["seeded"] and state["generator"] is not None and generator is not None:
+                generator.bit_generator.state = state["generator"]
+                obs, _ = markov_env.reset(seed=None, options=options)
+            observations.append(obs)
+        return self._gym_vec_env.concat_obs(observations)
+
     def reset(self) -> np.ndarray:
-        if self._base_seed is None:
-            self.seed(None)
         options = self._options[0] if self._options and self._options[0] else None
-        obs, _ = self._gym_vec_env.reset(seed=self._base_seed, options=options)
+        if self._pending_reset_states is not None:
+            obs = self._replay_resets(self._pending_reset_states, options)
+            self._pending_reset_states = None
+        else:
+            if self._base_seed is None:
+                self.seed(None)
+            obs, _ = self._gym_vec_env.reset(seed=self._base_seed, options=options)
         self._base_seed = None
         self._reset_options()
         self.reset_infos = [info for copy in range(self.n_copies) for info in self._copy_reset_infos(copy)]
         self._episode_returns[:] = 0.0
         self._episode_lengths[:] = 0
-        return obs
+        return tag_team(obs, tuple(self.possible_agents))
 
     def step_async(self, actions: np.ndarray) -> None:
         self._gym_vec_env.step_async(actions)
@@ -204,7 +304,7 @@ class MultiAgentVecEnv(VecEnvWrapper):
             self._episode_lengths[copy] = 0
             self.reset_infos[copy * n_agents : (copy + 1) * n_agents] = self._copy_reset_infos(copy)
         dones = np.repeat(copy_done, n_agents)
-        return obs, rewards, dones, infos
+        return tag_team(obs, tuple(self.possible_agents)), rewards, dones, infos
 
 
 def make_multiagent_vec_env(
@@ -227,8 +327,16 @@ def make_multiagent_vec_env(
     :param env_kwargs: keyword arguments of ``env_fn``
     :return: the VecEnv
     """
-    if not isinstance(n_envs, int | np.integer) or n_envs < 1:
-        raise ValueError(f"n_envs must be an integer >= 1, got {n_envs!r}")
+    if not callable(env_fn) or isinstance(env_fn, ParallelEnv):
+        raise TypeError(
+            f"env_fn must be a function returning a PettingZoo ParallelEnv (e.g. uav_coverage_v0.parallel_env), got {env_fn!r}"
+        )
+    if isinstance(n_envs, bool) or not isinstance(n_envs, Integral) or n_envs < 1:
+        raise ValueError(f"n_envs must be an integer >= 1 (environment copies), got {n_envs!r}")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, Integral) or not 0 <= seed < 2**32):
+        raise ValueError(f"seed must be None or an integer in [0, 2**32), got {seed!r}")
+    if env_kwargs is not None and not isinstance(env_kwargs, dict):
+        raise TypeError(f"env_kwargs must be a dict of keyword arguments of env_fn or None, got {env_kwargs!r}")
     parallel_env = env_fn(**(env_kwargs or {}))
     if not isinstance(parallel_env, ParallelEnv):
         raise TypeError(
@@ -243,3 +351,15 @@ def make_multiagent_vec_env(
     if seed is not None:
         venv.seed(seed)
     return venv
+
+
+def find_multiagent_vec_env(env: VecEnv | None) -> MultiAgentVecEnv | None:
+    """
+    :param env: a VecEnv, possibly wrapped (``VecNormalize``, monitors, ...)
+    :return: the :class:`MultiAgentVecEnv` inside it, or None
+    """
+    while env is not None:
+        if isinstance(env, MultiAgentVecEnv):
+            return env
+        env = getattr(env, "venv", None)
+    return None

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from pettingzoo import ParallelEnv
 
+from sb3_maddpg.common.atomic import atomic_open, atomic_write_text
 from sb3_maddpg.evaluation.baselines import Controller
 
 # The report's metrics at the last step of an episode (SPEC §1.5): c_T, f_T, e_T, eta_T.
@@ -196,13 +197,13 @@ def write_results(
     out.mkdir(parents=True, exist_ok=True)
     paths = {name: out / name for name in ("results.csv", "results.json", "episodes.csv", "results.md")}
 
-    with open(paths["results.csv"], "w", newline="") as file:
+    with atomic_open(paths["results.csv"], "w", newline="") as file:
         writer = csv.DictWriter(file, fieldnames=list(summary[0]))
         writer.writeheader()
         writer.writerows(summary)
 
     episode_keys = [*METRICS, *COUNTS, "return", "length"]
-    with open(paths["episodes.csv"], "w", newline="") as file:
+    with atomic_open(paths["episodes.csv"], "w", newline="") as file:
         writer = csv.writer(file)
         writer.writerow(["method", "episode", *episode_keys])
         for name, episodes in results.items():
@@ -210,8 +211,8 @@ def write_results(
                 writer.writerow([name, index, *(episode[key] for key in episode_keys)])
 
     payload = {"metadata": metadata or {}, "summary": list(summary), "episodes": results}
-    paths["results.json"].write_text(json.dumps(payload, indent=2, default=_to_json))
-    paths["results.md"].write_text(format_table(summary) + "\n")
+    atomic_write_text(paths["results.json"], json.dumps(payload, indent=2, default=_to_json))
+    atomic_write_text(paths["results.md"], format_table(summary) + "\n")
     return paths
 
 

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from sb3_maddpg.common.atomic import atomic_path
 from sb3_maddpg.evaluation.evaluate import METRICS, EpisodeRecord
 
 LABELS: dict[str, str] = {
@@ -64,7 +65,8 @@ def _scatter(series: dict[str, Series], x_key: str, y_key: str, path: str | os.P
     if len(series) > 1:
         ax.legend(fontsize="small")
     fig.tight_layout()
-    fig.savefig(os.fspath(path), dpi=110)
+    with atomic_path(path) as temporary:
+        fig.savefig(temporary, dpi=110)
     plt.close(fig)
     return Path(path)
 
@@ -149,7 +151,8 @@ def plot_metrics_vs_episode(
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(os.fspath(path), dpi=110)
+    with atomic_path(path) as temporary:
+        fig.savefig(temporary, dpi=110)
     plt.close(fig)
     return Path(path)
 
@@ -178,15 +181,18 @@ def save_episode_figures(record: EpisodeRecord, out_dir: str | os.PathLike, pref
         written.append(path)
     for step, frame in sorted(record.render_frames.items()):
         path = out / f"{prefix}frame_step{step:04d}.png"
-        Image.fromarray(np.asarray(frame, dtype=np.uint8)).save(path)
+        with atomic_path(path) as temporary:
+            Image.fromarray(np.asarray(frame, dtype=np.uint8)).save(temporary)
         written.append(path)
     if record.core is not None:
         path = out / f"{prefix}coverage_heatmap.png"
-        save_coverage_heatmap(record.core, path)
+        with atomic_path(path) as temporary:
+            save_coverage_heatmap(record.core, temporary)
         written.append(path)
     if record.frames:
         path = out / f"{prefix}episode.gif"
-        save_gif(record.frames, path, fps=fps)
+        with atomic_path(path) as temporary:
+            save_gif(record.frames, temporary, fps=fps)
         written.append(path)
     return written
 
@@ -200,7 +206,8 @@ def _save_state_array(state: np.ndarray, path: Path, scale: int = 4) -> None:
 
     rgb = np.transpose(np.asarray(state, dtype=np.uint8), (1, 2, 0))
     rgb = np.repeat(np.repeat(rgb, scale, axis=0), scale, axis=1)
-    Image.fromarray(np.ascontiguousarray(rgb)).save(path)
+    with atomic_path(path) as temporary:
+        Image.fromarray(np.ascontiguousarray(rgb)).save(temporary)
 
 
 # ---------------------------------------------------------------------------------------------------------------------

@@ -8,6 +8,7 @@ from typing import Any
 
 import yaml
 
+from sb3_maddpg.common.atomic import check_writable_folder
 from sb3_maddpg.evaluation.baselines import Controller, GreedyStaticController, ModelController, RandomController
 from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
 from sb3_maddpg.evaluation.figures import (
@@ -52,6 +53,37 @@ def find_run_config(model_path: str | os.PathLike) -> tuple[str | None, dict[str
     return args.get("env"), env_kwargs
 
 
+def check_model_fits_env(model_path: str | os.PathLike, env_id: str, env_kwargs: dict[str, Any]) -> None:
+    """
+    Check, without loading its networks, that a saved model can act on an env: it is an intact MADDPG model, for the
+    env's number of agents and observation space. Another number of agents would be read as several copies of the
+    team (plausible but wrong numbers); other observations would fail inside the network.
+
+    :param model_path: the saved model
+    :param env_id: a registered multi-agent env id
+    :param env_kwargs: the env's arguments
+    :raises ModelEnvMismatchError: one line naming the model's and the env's agents and observations
+    """
+    from sb3_maddpg.common.model_files import read_maddpg_data
+    from sb3_maddpg.zoo.registry import make_multiagent_env
+
+    try:
+        data = read_maddpg_data(model_path, ("n_agents", "observation_space"))
+    except (ValueError, FileNotFoundError) as error:
+        raise ModelEnvMismatchError(str(error)) from error
+    kwargs = {key: value for key, value in env_kwargs.items() if key != "render_mode"}
+    probe = make_multiagent_env(env_id, **kwargs)
+    agents = list(probe.possible_agents)
+    observation_space = probe.observation_space(agents[0])
+    probe.close()
+    if data.get("n_agents") != len(agents) or data.get("observation_space") != observation_space:
+        raise ModelEnvMismatchError(
+            f"the model was trained with {data.get('n_agents')} agents and observations {data.get('observation_space')}, "
+            f"but {env_id} with {kwargs} has {len(agents)} agents and observations {observation_space}; "
+            "pass the training env's settings with --env-kwargs"
+        )
+
+
 def evaluate_and_report(
     out_dir: str | os.PathLike,
     n_episodes: int = 10,
@@ -92,10 +124,9 @@ def evaluate_and_report(
     kwargs = {**run_env_kwargs, "start": "random", **(env_kwargs or {})}
     kwargs.pop("render_mode", None)
 
+    check_writable_folder(out_dir, "out_dir")
     probe = make_multiagent_env(env_id, **kwargs)
     core = getattr(probe, "core", None)
-    agents = list(probe.possible_agents)
-    observation_space = probe.observation_space(agents[0])
     probe.close()
     if core is None:
         raise ValueError(f"{env_id} has no coverage metrics: evaluate runs uav_coverage envs only")
@@ -105,18 +136,11 @@ def evaluate_and_report(
     if model_path is not None:
         from sb3_maddpg import MADDPG
 
+        check_model_fits_env(model_path, env_id, kwargs)
         try:
             model = MADDPG.load(model_path, device=device)
         except (AssertionError, KeyError, ValueError, TypeError, RuntimeError) as error:
-            raise ModelEnvMismatchError(f"{model_path} is not a MADDPG model that can be loaded here: {error!r}") from error
-        # A model acts on the env it was trained for: another number of agents would be read as several copies
-        # (and give plausible but wrong numbers), another observation size would fail inside the network.
-        if model.n_agents != len(agents) or model.observation_space != observation_space:
-            raise ModelEnvMismatchError(
-                f"the model was trained with {model.n_agents} agents and observations {model.observation_space}, "
-                f"but {env_id} with {kwargs} has {len(agents)} agents and observations {observation_space}; "
-                "pass the training env's settings with --env-kwargs"
-            )
+            raise ModelEnvMismatchError(f"{model_path} is not a MADDPG model that can be loaded here: {error}") from error
         controllers.append(ModelController(model, name="maddpg"))
     controllers += [RandomController(), GreedyStaticController()]
     record_name = controllers[0].name if model_path is not None else "greedy_static"

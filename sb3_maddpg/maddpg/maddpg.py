@@ -1,6 +1,11 @@
 """MADDPG with centralised quantile critics and a CVaR actor objective, as an SB3 off-policy algorithm."""
 
-from numbers import Integral, Real
+import io
+import os
+import pathlib
+import pickle
+from collections.abc import Iterable
+from numbers import Real
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -12,6 +17,8 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList, Conve
 from stable_baselines3.common.noise import ActionNoise, VectorizedActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.preprocessing import get_action_dim
+from stable_baselines3.common.save_util import load_from_pkl
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
 from stable_baselines3.common.utils import (
     FloatSchedule,
@@ -22,16 +29,29 @@ from stable_baselines3.common.utils import (
 )
 from stable_baselines3.common.vec_env import VecEnv
 
+from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.common.distributional import cvar, quantile_huber_loss
+from sb3_maddpg.common.model_files import READ_ERRORS, read_maddpg_data
 from sb3_maddpg.common.noise import DecayingGaussianNoise, current_noise_std, set_noise_timestep
+from sb3_maddpg.common.random_state import capture_random_states, restore_random_states
+from sb3_maddpg.common.validation import check_algorithm_arguments, check_int, check_number
 from sb3_maddpg.maddpg.policies import CnnPolicy, MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentQuantileCritic
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
 
 # |pre-tanh| above atanh(0.99): the output is within 1 % of a bound of the action space
 _SATURATED_PREACTIVATION = float(np.arctanh(0.99))
+
+
+def _default_agent_names(n_agents: int) -> list[str]:
+    return [f"agent_{i}" for i in range(n_agents)]
+
+
+def _describe_team(names: list[str]) -> str:
+    shown = ", ".join(names) if len(names) <= 8 else f"{', '.join(names[:3])}, ..., {names[-1]}"
+    return f"{len(names)} agent{'s' if len(names) != 1 else ''} ({shown})"
 
 
 def _contains_callback(callback: BaseCallback, callback_class: type[BaseCallback]) -> bool:
@@ -154,6 +174,25 @@ class MADDPG(OffPolicyAlgorithm):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ) -> None:
+        check_algorithm_arguments(
+            dict(
+                learning_rate=learning_rate,
+                learning_starts=learning_starts,
+                tau=tau,
+                gamma=gamma,
+                train_freq=train_freq,
+                gradient_steps=gradient_steps,
+                action_noise=action_noise,
+                replay_buffer_kwargs=replay_buffer_kwargs,
+                share_actor=share_actor,
+                stats_window_size=stats_window_size,
+                tensorboard_log=tensorboard_log,
+                policy_kwargs=policy_kwargs,
+                verbose=verbose,
+                seed=seed,
+                device=device,
+            )
+        )
         if isinstance(cvar_alpha, bool) or not isinstance(cvar_alpha, Real) or not 0.0 < cvar_alpha <= 1.0:
             raise ValueError(f"cvar_alpha must be a number in (0, 1] (1 = risk-neutral mean), got {cvar_alpha!r}")
         for name, value in (("buffer_size", buffer_size), ("batch_size", batch_size)):
@@ -170,28 +209,15 @@ class MADDPG(OffPolicyAlgorithm):
             raise ValueError("share_actor is an argument of MADDPG, not a policy kwarg: use MADDPG(..., share_actor=True)")
         if isinstance(actor_reg, bool) or not isinstance(actor_reg, int | float) or not actor_reg >= 0.0:
             raise ValueError(f"actor_reg must be a number >= 0 (0 turns the penalty off), got {actor_reg!r}")
-        for name, value, minimum in (("policy_delay", policy_delay, 1), ("critic_warmup_steps", critic_warmup_steps, 0)):
-            if isinstance(value, bool) or not isinstance(value, Integral) or value < minimum:
-                raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-        if max_grad_norm is not None and (
-            isinstance(max_grad_norm, bool) or not isinstance(max_grad_norm, Real) or not 0.0 < max_grad_norm < float("inf")
-        ):
-            raise ValueError(f"max_grad_norm must be None (no clipping) or a finite number > 0, got {max_grad_norm!r}")
-        for name, value in (("target_policy_noise", target_policy_noise), ("target_noise_clip", target_noise_clip)):
-            if isinstance(value, bool) or not isinstance(value, Real) or not 0.0 <= value < float("inf"):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        if (
-            actor_learning_rate is not None
-            and not callable(actor_learning_rate)
-            and (
-                isinstance(actor_learning_rate, bool)
-                or not isinstance(actor_learning_rate, Real)
-                or not actor_learning_rate > 0.0
-            )
-        ):
-            raise ValueError(
-                f"actor_learning_rate must be None (same as learning_rate), a number > 0 or a schedule, "
-                f"got {actor_learning_rate!r}"
+        check_int("policy_delay", policy_delay, 1)
+        check_int("critic_warmup_steps", critic_warmup_steps, 0)
+        if max_grad_norm is not None:
+            check_number("max_grad_norm (None for no clipping)", max_grad_norm, low=0.0, low_open=True)
+        check_number("target_policy_noise", target_policy_noise, low=0.0)
+        check_number("target_noise_clip", target_noise_clip, low=0.0)
+        if actor_learning_rate is not None and not callable(actor_learning_rate):
+            check_number(
+                "actor_learning_rate (None: learning_rate; or a schedule)", actor_learning_rate, low=0.0, low_open=True
             )
         if isinstance(env, ParallelEnv):
             raise TypeError(
@@ -250,11 +276,15 @@ class MADDPG(OffPolicyAlgorithm):
         return self.n_envs // self.n_agents
 
     def _read_agents(self, env: VecEnv, n_agents: int | None) -> None:
-        """Set ``n_agents`` and ``agent_names`` from the env (or the argument) and check the VecEnv's rows."""
+        """Set ``n_agents`` and ``agent_names`` from the env (or the argument) and check the VecEnv's rows and team."""
         env_n_agents = getattr(env, "n_agents", None)
-        if n_agents is not None and (isinstance(n_agents, bool) or not isinstance(n_agents, Integral) or n_agents < 1):
-            raise ValueError(f"n_agents must be an integer >= 1, got {n_agents!r}")
+        if n_agents is not None:
+            check_int("n_agents", n_agents, 1)
+        names = getattr(env, "possible_agents", None)
         if env_n_agents is not None and n_agents is not None and env_n_agents != n_agents:
+            if self.agent_names is not None and names is not None:
+                # a model that knows its team (loaded, or set_env) on a VecEnv of another team
+                self.check_team([str(name) for name in names], "the VecEnv")
             raise ValueError(f"n_agents={n_agents} disagrees with the env's n_agents={env_n_agents}")
         n_agents = n_agents if n_agents is not None else env_n_agents
         if n_agents is None:
@@ -270,11 +300,31 @@ class MADDPG(OffPolicyAlgorithm):
                 "rows must be agent-major inside each copy (row = copy * n_agents + agent)"
             )
         self.n_agents = int(n_agents)
-        names = getattr(env, "possible_agents", None)
         if names is not None and len(names) == self.n_agents:
-            self.agent_names = [str(name) for name in names]
+            names = [str(name) for name in names]
+            if self.agent_names is not None and self.agent_names != _default_agent_names(self.n_agents):
+                self.check_team(names, "the VecEnv")
+            self.agent_names = names
         elif self.agent_names is None or len(self.agent_names) != self.n_agents:
-            self.agent_names = [f"agent_{i}" for i in range(self.n_agents)]
+            self.agent_names = _default_agent_names(self.n_agents)
+
+    def check_team(self, names: list[str], where: str) -> None:
+        """
+        Refuse a team other than the model's: a model of N agents reads the rows of a larger team as several copies
+        of its own, and would act and report plausible but wrong numbers.
+
+        :param names: the agents of the VecEnv (or observations) the model is asked to act on, in row order
+        :param where: what holds them, for the message
+        :raises ValueError: naming both teams
+        """
+        assert self.n_agents is not None
+        own = self.agent_names or _default_agent_names(self.n_agents)
+        same_names = own == names or own == _default_agent_names(self.n_agents)
+        if len(names) != self.n_agents or not same_names:
+            raise ValueError(
+                f"this MADDPG model acts for a team of {_describe_team(own)}, but {where} has a team of "
+                f"{_describe_team(names)}; use an env with the model's team (the same agents and n_agents)"
+            )
 
     def _setup_model(self) -> None:
         # As OffPolicyAlgorithm._setup_model, but the replay buffer is only allocated when there is an env to fill
@@ -337,9 +387,37 @@ class MADDPG(OffPolicyAlgorithm):
         self.critic_target = self.policy.critic_target
 
     def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
+        names = getattr(env, "possible_agents", None)
+        if names is not None:
+            self.check_team([str(name) for name in names], "the VecEnv")
         super().set_env(env, force_reset=force_reset)
         assert self.env is not None
         self._read_agents(self.env, self.n_agents)
+
+    def predict(
+        self,
+        observation: np.ndarray | dict[str, np.ndarray],
+        state: tuple[np.ndarray, ...] | None = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, tuple[np.ndarray, ...] | None]:
+        """
+        Actions of SB3's rows (row = copy * n_agents + agent; row r is acted on by actor r mod n_agents).
+
+        Observations from ``make_multiagent_vec_env`` carry their team (:class:`~sb3_maddpg.common.vec_env.AgentRows`):
+        those of another team than the model's are refused, wherever they come from (``evaluate_policy``, RL Zoo's
+        ``enjoy``, a loop of your own).
+
+        :param observation: the observation rows
+        :param state: unused (no recurrent policy)
+        :param episode_start: unused
+        :param deterministic: unused: the actors are deterministic, exploration noise is added during ``learn``
+        :return: the actions and None
+        """
+        names = getattr(observation, "possible_agents", None)
+        if names is not None:
+            self.check_team(list(names), "the observations' VecEnv")
+        return super().predict(observation, state, episode_start, deterministic)
 
     def critic_loss(self, replay_data: MultiAgentReplayBufferSamples) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
         """
@@ -609,6 +687,117 @@ class MADDPG(OffPolicyAlgorithm):
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "actor", "critic", "actor_target", "critic_target"]
+
+    def save(
+        self,
+        path: str | pathlib.Path | io.BufferedIOBase,
+        exclude: Iterable[str] | None = None,
+        include: Iterable[str] | None = None,
+    ) -> None:
+        """
+        Save the model as SB3 does (a zip of the class parameters and the networks), atomically: it is written to a
+        temporary file in the same folder and moved into place, so an interrupted save leaves the previous file whole.
+        The random states (Python, NumPy, PyTorch, the action space, the env copies' last resets) are saved with it,
+        and ``load`` restores them: see ``sb3_maddpg.common.random_state``.
+
+        :param path: the file (``.zip`` is added when the name has no suffix), or an open binary file
+        :param exclude: names of parameters to leave out, in addition to the default ones
+        :param include: names of parameters to save although they are excluded by default
+        """
+        self._saved_random_states = capture_random_states(self)
+        try:
+            base_save = super().save
+            atomic_save(lambda file: base_save(file, exclude=exclude, include=include), path, suffix="zip")
+        finally:
+            del self._saved_random_states
+
+    @classmethod
+    def load(  # type: ignore[override]
+        cls: type[SelfMADDPG],
+        path: str | pathlib.Path | io.BufferedIOBase,
+        env: GymEnv | None = None,
+        device: th.device | str = "auto",
+        custom_objects: dict[str, Any] | None = None,
+        print_system_info: bool = False,
+        force_reset: bool = True,
+        **kwargs: Any,
+    ) -> SelfMADDPG:
+        """
+        Load a model saved by ``save`` (as SB3's ``load``), after checking that the file is an intact MADDPG model,
+        and restore the random states saved with it (the generators continue where they were when it was saved;
+        call ``set_random_seed`` afterwards to reseed instead). With ``env``, the env must have the model's team.
+
+        :param path: the model file (``.zip`` may be left out) or an open binary file
+        :param env: the environment to act and learn on (None: only to predict)
+        :param device: the device of the networks
+        :param custom_objects: objects to use instead of the saved ones (as in SB3)
+        :param print_system_info: print the system info of the saved model and of this one
+        :param force_reset: reset the env before the next ``learn`` (as in SB3)
+        :param kwargs: attributes to change while loading (as in SB3)
+        :return: the model
+        :raises ValueError: if the file is not a MADDPG model or is damaged, or the env's team is not the model's
+        """
+        read_maddpg_data(path)  # type: ignore[arg-type]
+        try:
+            model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
+        except READ_ERRORS as error:
+            first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+            name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the model file"
+            raise ValueError(f"{name} is damaged or was saved by an incompatible version: {first_line}") from error
+        states = model.__dict__.pop("_saved_random_states", None)
+        if states is not None:
+            restore_random_states(model, states)
+        return model
+
+    def save_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase) -> None:
+        """
+        Save the replay buffer as a pickle file, atomically (see ``save``).
+
+        :param path: the file (``.pkl`` is added when the name has no suffix), or an open binary file
+        """
+        assert self.replay_buffer is not None, "The replay buffer is not defined"
+        atomic_save(super().save_replay_buffer, path, suffix="pkl")  # type: ignore[arg-type]
+
+    def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
+        """
+        Load a replay buffer saved by ``save_replay_buffer``, after checking that it fits this model: the same agents,
+        observation shape and dtype, and action size. A buffer from another number of environment copies is laid
+        out again for this model's copies (``MultiAgentReplayBuffer.with_copies``): every joint transition is kept,
+        up to this model's ``buffer_size``.
+
+        :param path: the pickle file, or an open binary file
+        :param truncate_last_traj: unused (only for SB3's ``HerReplayBuffer``)
+        :raises ValueError: if the buffer does not fit, naming its shapes and the model's
+        """
+        name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the replay buffer file"
+        try:
+            buffer = load_from_pkl(path, self.verbose)
+        except (pickle.UnpicklingError, EOFError, AttributeError, ImportError) as error:
+            raise ValueError(f"{name} is not a replay buffer that can be read here, or is damaged: {error}") from error
+        self.replay_buffer = self._fit_replay_buffer(buffer, name)
+        self.replay_buffer.device = self.device
+
+    def _fit_replay_buffer(self, buffer: Any, name: str) -> MultiAgentReplayBuffer:
+        """Check that a loaded buffer fits the model; lay it out for the model's number of copies."""
+        if not isinstance(buffer, MultiAgentReplayBuffer):
+            raise TypeError(f"{name} holds a {type(buffer).__name__}, not a MultiAgentReplayBuffer of joint transitions")
+        assert self.n_agents is not None
+        obs_shape, obs_dtype = tuple(self.observation_space.shape), self.observation_space.dtype  # type: ignore[arg-type]
+        action_dim = get_action_dim(self.action_space)
+        found = (buffer.n_agents, tuple(buffer.obs_shape), buffer.observations.dtype, buffer.action_dim)
+        if found != (self.n_agents, obs_shape, obs_dtype, action_dim):
+            raise ValueError(
+                f"the replay buffer {name} holds joint transitions of {buffer.n_agents} agents with observations "
+                f"{tuple(buffer.obs_shape)} {buffer.observations.dtype} and actions ({buffer.action_dim},), but this "
+                f"model has {self.n_agents} agents with observations {obs_shape} {obs_dtype} and actions ({action_dim},); "
+                "load a buffer saved with the same env configuration"
+            )
+        n_copies = self.n_envs // self.n_agents
+        if buffer.n_copies != n_copies:
+            if self.verbose >= 1:
+                print(f"Laying the replay buffer out again: {buffer.n_copies} environment copies -> {n_copies}")
+            buffer = buffer.with_copies(n_copies, self.buffer_size)
+        return buffer
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         state_dicts = ["policy", "actor.optimizer", "critic.optimizer"]

@@ -1,6 +1,5 @@
 """Actors, centralised quantile critics and the MADDPG policy."""
 
-from numbers import Integral
 from typing import Any
 
 import torch as th
@@ -12,6 +11,7 @@ from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
 from sb3_maddpg.common.torch_layers import BatchedMlp, MultiAgentFeatures, ReportCNN
+from sb3_maddpg.common.validation import check_policy_arguments
 
 
 class MultiAgentActor(nn.Module):
@@ -190,10 +190,18 @@ class MADDPGPolicy(BasePolicy):
             raise TypeError(f"MADDPGPolicy accepts a Box observation space (vector or image), got {observation_space}")
         if not isinstance(action_space, spaces.Box):
             raise TypeError(f"MADDPGPolicy accepts a Box (continuous) action space, got {action_space}")
-        if isinstance(n_quantiles, bool) or not isinstance(n_quantiles, Integral) or n_quantiles < 1:
-            raise ValueError(f"n_quantiles must be an integer >= 1, got {n_quantiles!r}")
-        if isinstance(n_agents, bool) or not isinstance(n_agents, Integral) or n_agents < 1:
-            raise ValueError(f"n_agents must be an integer >= 1, got {n_agents!r}")
+        check_policy_arguments(
+            n_agents,
+            share_actor,
+            n_quantiles,
+            net_arch,
+            activation_fn,
+            features_extractor_class,
+            features_extractor_kwargs,
+            normalize_images,
+            optimizer_class,
+            optimizer_kwargs,
+        )
         n_quantiles, n_agents = int(n_quantiles), int(n_agents)
         super().__init__(
             observation_space,

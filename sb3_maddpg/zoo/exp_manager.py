@@ -2,6 +2,8 @@
 
 import inspect
 import os
+import pickle
+import shutil
 import warnings
 from collections.abc import Callable
 from copy import deepcopy
@@ -14,6 +16,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import EvalCallback
 from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecFrameStack, VecNormalize
 
+from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
@@ -112,6 +115,16 @@ class MultiAgentExperimentManager(ExperimentManager):
     Single-agent Gymnasium envs go through RL Zoo's own code unchanged.
     """
 
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        if self.optimize_hyperparameters and self.n_jobs > 1:
+            # Optuna would run the trials as threads of this one manager, which holds each trial's state
+            # (hyperparameters, action noise, envs) in its attributes: the trials would overwrite each other's.
+            raise UsageError(
+                f"--n-jobs {self.n_jobs}: trials would run as threads sharing one experiment manager; run several "
+                "processes instead, each with --n-jobs 1 and the same --storage and --study-name (they share the study)"
+            )
+
     def read_hyperparameters(self) -> tuple[dict[str, Any], dict[str, Any]]:
         if not os.path.isfile(self.config) and (self.config.endswith(".yml") or self.config.endswith(".yaml")):
             raise UsageError(f"config file {self.config} not found")
@@ -125,11 +138,43 @@ class MultiAgentExperimentManager(ExperimentManager):
         return hyperparams, saved_hyperparams
 
     def setup_experiment(self) -> tuple[BaseAlgorithm, dict[str, Any]] | None:
+        # RL Zoo creates the run folder before it builds the algorithm: a refused value must not leave it behind
+        folder_existed = os.path.exists(self.save_path)
         try:
             return super().setup_experiment()
         except (ValueError, TypeError) as error:
+            if not folder_existed:
+                shutil.rmtree(self.save_path, ignore_errors=True)
+            if isinstance(error, UsageError):
+                raise
             # A hyperparameter value the algorithm refuses (e.g. cvar_alpha: 2.0): its own message, no traceback
             raise UsageError(f"{self.algo} on {self.env_name.gym_id}: {error}") from error
+
+    def _load_pretrained_agent(self, hyperparams: dict[str, Any], env: VecEnv) -> BaseAlgorithm:
+        # A resumed run keeps the saved action noise, whose schedule has advanced with the saved run (RL Zoo would pass
+        # the YAML's, restarting the decay); the rest of the YAML entry applies as in RL Zoo.
+        if "action_noise" in hyperparams:
+            hyperparams = {key: value for key, value in hyperparams.items() if key != "action_noise"}
+            print("Resuming: the saved action noise continues its schedule (the YAML's noise settings are not used)")
+        return super()._load_pretrained_agent(hyperparams, env)
+
+    def learn(self, model: BaseAlgorithm) -> None:
+        # A resumed run (-i model.zip) continues the saved run's timestep counter (learning_starts, schedules,
+        # TensorBoard's x-axis) and trains n_timesteps more, instead of starting again at 0.
+        super().learn(_ContinuedLearning(model) if self.continue_training else model)  # type: ignore[arg-type]
+
+    def save_trained_model(self, model: BaseAlgorithm) -> None:
+        # As RL Zoo's, with every file written atomically (MADDPG's own saves are; other algorithms' are made so here)
+        print(f"Saving to {self.save_path}")
+        atomic_save(model.save, f"{self.save_path}/{self.env_name}", suffix="zip")
+        if hasattr(model, "save_replay_buffer") and self.save_replay_buffer:
+            print("Saving replay buffer")
+            atomic_save(model.save_replay_buffer, os.path.join(self.save_path, "replay_buffer.pkl"), suffix="pkl")
+        if self.normalize:
+            # Important: save the running average, for testing the agent we need that normalization
+            vec_normalize = model.get_vec_normalize_env()
+            assert vec_normalize is not None
+            atomic_save(lambda file: pickle.dump(vec_normalize, file), os.path.join(self.params_path, "vecnormalize.pkl"))
 
     def _preprocess_hyperparams(
         self, hyperparams: dict[str, Any]
@@ -208,6 +253,24 @@ class MultiAgentExperimentManager(ExperimentManager):
         return _wrap_like_rl_zoo(
             env, self.vec_env_wrapper, self.frame_stack, lambda venv: self._maybe_normalize(venv, eval_env)
         )
+
+
+class _ContinuedLearning:
+    """
+    The model as RL Zoo's ``ExperimentManager.learn`` sees it when a run is resumed: ``learn`` continues the model's
+    timestep counter (``reset_num_timesteps=False``); every other attribute is the model's.
+
+    :param model: the loaded model
+    """
+
+    def __init__(self, model: BaseAlgorithm) -> None:
+        self._model = model
+
+    def learn(self, total_timesteps: int, **kwargs: Any) -> BaseAlgorithm:
+        return self._model.learn(total_timesteps, reset_num_timesteps=False, **kwargs)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._model, name)
 
 
 def _wrap_like_rl_zoo(

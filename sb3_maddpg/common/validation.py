@@ -1,0 +1,209 @@
+"""
+Argument checks shared by ``MADDPG``, its policies and the VecEnv helper: each raises where the input enters, with one
+line naming the argument, the value given and what is accepted.
+"""
+
+import math
+import os
+from numbers import Integral, Real
+from typing import Any
+
+import torch as th
+from stable_baselines3.common.noise import ActionNoise
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+from torch import nn
+
+
+def check_int(name: str, value: Any, minimum: int | None = None) -> int:
+    """
+    :param name: the argument's name
+    :param value: the value given
+    :param minimum: the smallest accepted value
+    :return: the value as an int
+    """
+    if isinstance(value, bool) or not isinstance(value, Integral) or (minimum is not None and value < minimum):
+        accepted = "an integer" if minimum is None else f"an integer >= {minimum}"
+        raise ValueError(f"{name} must be {accepted}, got {value!r}")
+    return int(value)
+
+
+def check_number(name: str, value: Any, low: float | None = None, high: float | None = None, low_open: bool = False) -> float:
+    """
+    A finite real number in ``[low, high]`` (``(low, high]`` with ``low_open``).
+
+    :param name: the argument's name
+    :param value: the value given
+    :param low: the lower bound (None: unbounded)
+    :param high: the upper bound, included (None: unbounded)
+    :param low_open: exclude ``low``
+    :return: the value as a float
+    """
+    ok = isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(float(value))
+    if ok and low is not None:
+        ok = float(value) > low if low_open else float(value) >= low
+    if ok and high is not None:
+        ok = float(value) <= high
+    if not ok:
+        if low is not None and high is not None:
+            accepted = f"a number in {'(' if low_open else '['}{low:g}, {high:g}]"
+        elif low is not None:
+            accepted = f"a finite number {'>' if low_open else '>='} {low:g}"
+        else:
+            accepted = "a finite number"
+        raise ValueError(f"{name} must be {accepted}, got {value!r}")
+    return float(value)
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """
+    :param name: the argument's name
+    :param value: the value given
+    :return: the value
+    """
+    if not isinstance(value, bool):
+        raise TypeError(f"{name} must be True or False, got {value!r}")
+    return value
+
+
+def check_optional_dict(name: str, value: Any) -> dict[str, Any]:
+    """
+    :param name: the argument's name
+    :param value: a dict of keyword arguments, or None
+    :return: the dict (empty for None)
+    """
+    if value is None:
+        return {}
+    if not isinstance(value, dict) or not all(isinstance(key, str) for key in value):
+        raise TypeError(f"{name} must be a dict of keyword arguments (str keys) or None, got {value!r}")
+    return value
+
+
+def check_subclass(name: str, value: Any, base: type) -> type:
+    """
+    :param name: the argument's name
+    :param value: the class given
+    :param base: the class it must derive from
+    :return: the class
+    """
+    if not (isinstance(value, type) and issubclass(value, base)):
+        raise TypeError(f"{name} must be a subclass of {base.__module__}.{base.__qualname__}, got {value!r}")
+    return value
+
+
+def check_seed(name: str, value: Any) -> int | None:
+    """
+    :param name: the argument's name
+    :param value: None or a seed
+    :return: the seed
+    """
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, Integral) or not 0 <= value < 2**32:
+        raise ValueError(f"{name} must be None or an integer in [0, 2**32), got {value!r}")
+    return int(value)
+
+
+def check_net_arch(value: Any) -> None:
+    """
+    ``net_arch`` of a MADDPG policy: a list of positive layer sizes, or a dict with lists ``pi`` and ``qf``.
+
+    :param value: the value given (None: the default)
+    """
+    if value is None:
+        return
+    if isinstance(value, dict):
+        unknown = sorted(set(value) - {"pi", "qf"})
+        if unknown or not {"pi", "qf"} <= set(value):
+            raise ValueError(f"net_arch as a dict must have exactly the keys 'pi' (actors) and 'qf' (critics), got {value!r}")
+        for key in ("pi", "qf"):
+            _check_layer_sizes(f"net_arch[{key!r}]", value[key])
+        return
+    _check_layer_sizes("net_arch", value)
+
+
+def _check_layer_sizes(name: str, sizes: Any) -> None:
+    if not isinstance(sizes, list | tuple) or not all(
+        isinstance(size, Integral) and not isinstance(size, bool) and size >= 1 for size in sizes
+    ):
+        raise ValueError(
+            f"{name} must be a list of hidden layer sizes, each an integer >= 1 (e.g. [64, 64]; [] for none), got {sizes!r}"
+        )
+
+
+def check_policy_arguments(
+    n_agents: Any,
+    share_actor: Any,
+    n_quantiles: Any,
+    net_arch: Any,
+    activation_fn: Any,
+    features_extractor_class: Any,
+    features_extractor_kwargs: Any,
+    normalize_images: Any,
+    optimizer_class: Any,
+    optimizer_kwargs: Any,
+) -> None:
+    """
+    Check the arguments of ``MADDPGPolicy`` (parameters as there).
+    """
+    check_int("n_agents", n_agents, 1)
+    check_bool("share_actor", share_actor)
+    check_int("n_quantiles", n_quantiles, 1)
+    check_net_arch(net_arch)
+    check_subclass("activation_fn", activation_fn, nn.Module)
+    check_subclass("features_extractor_class", features_extractor_class, BaseFeaturesExtractor)
+    check_optional_dict("features_extractor_kwargs", features_extractor_kwargs)
+    check_bool("normalize_images", normalize_images)
+    check_subclass("optimizer_class", optimizer_class, th.optim.Optimizer)
+    check_optional_dict("optimizer_kwargs", optimizer_kwargs)
+
+
+def check_algorithm_arguments(arguments: dict[str, Any]) -> None:
+    """
+    Check the arguments of ``MADDPG`` that SB3 would accept silently or let fail deep inside (parameters as in
+    ``MADDPG``; ``policy_kwargs`` are checked again by the policy when it is built).
+
+    :param arguments: argument name -> value
+    """
+    learning_rate = arguments["learning_rate"]
+    if not callable(learning_rate):
+        check_number("learning_rate", learning_rate, 0.0, low_open=True)
+    check_int("learning_starts", arguments["learning_starts"], 0)
+    check_number("tau", arguments["tau"], 0.0, 1.0)
+    check_number("gamma", arguments["gamma"], 0.0, 1.0)
+    _check_train_freq(arguments["train_freq"])
+    check_int("gradient_steps", arguments["gradient_steps"], -1)
+    action_noise = arguments["action_noise"]
+    if action_noise is not None and not isinstance(action_noise, ActionNoise):
+        raise TypeError(f"action_noise must be an SB3 ActionNoise or None, got {action_noise!r}")
+    check_optional_dict("replay_buffer_kwargs", arguments["replay_buffer_kwargs"])
+    check_bool("share_actor", arguments["share_actor"])
+    check_int("stats_window_size", arguments["stats_window_size"], 1)
+    tensorboard_log = arguments["tensorboard_log"]
+    if tensorboard_log is not None and not isinstance(tensorboard_log, str | os.PathLike):
+        raise TypeError(f"tensorboard_log must be a folder path or None, got {tensorboard_log!r}")
+    policy_kwargs = check_optional_dict("policy_kwargs", arguments["policy_kwargs"])
+    if "net_arch" in policy_kwargs:
+        check_net_arch(policy_kwargs["net_arch"])
+    check_int("verbose", arguments["verbose"], 0)
+    check_seed("seed", arguments["seed"])
+    device = arguments["device"]
+    if not isinstance(device, str | th.device):
+        raise TypeError(f"device must be 'auto', 'cpu', 'cuda', 'cuda:N' or a torch.device, got {device!r}")
+    if isinstance(device, str) and device != "auto":
+        try:
+            th.device(device)
+        except RuntimeError as error:
+            raise ValueError(f"device must be 'auto', 'cpu', 'cuda', 'cuda:N' or a torch.device, got {device!r}") from error
+
+
+def _check_train_freq(train_freq: Any) -> None:
+    accepted = "an integer >= 1 (VecEnv steps) or a tuple (k >= 1, 'step' or 'episode')"
+    if isinstance(train_freq, tuple) and len(train_freq) == 2:
+        frequency, unit = train_freq
+        unit = getattr(unit, "value", unit)  # SB3's TrainFrequencyUnit
+        if unit in ("step", "episode") and not isinstance(frequency, bool) and isinstance(frequency, Integral):
+            if frequency >= 1:
+                return
+    elif not isinstance(train_freq, bool) and isinstance(train_freq, Integral) and train_freq >= 1:
+        return
+    raise ValueError(f"train_freq must be {accepted}, got {train_freq!r}")

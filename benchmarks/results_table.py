@@ -59,7 +59,7 @@ def figure(curves: dict[str, dict[int, list[dict]]], path: Path) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for colour, (label, seeds) in zip(colours, curves.items(), strict=False):
-        for i, (seed, records) in enumerate(sorted(seeds.items())):
+        for i, (_seed, records) in enumerate(sorted(seeds.items())):
             steps = [r["timesteps"] for r in records]
             for axis, key in zip(axes, ("coverage", "energy_efficiency"), strict=True):
                 axis.plot(steps, [r[key] for r in records], color=colour, alpha=0.8, label=label if i == 0 else None)

@@ -27,8 +27,15 @@ STABILISERS = dict(
     actor_reg=1e-3,
 )
 ENCODER = dict(padding=1, coord_channels=True)
-V0_RULES = dict(action_mode="polar", wall_mode="refuse", reward_mode="report", wall_penalty=0.5, comm_penalty=0.0,
-                entropy_coef=0.0, reward_scale=10.0)
+V0_RULES = dict(
+    action_mode="polar",
+    wall_mode="refuse",
+    reward_mode="report",
+    wall_penalty=0.5,
+    comm_penalty=0.0,
+    entropy_coef=0.0,
+    reward_scale=10.0,
+)
 VARIANTS = {
     "v1 rules + stabilisers + encoder (the test)": (dict(), STABILISERS, ENCODER),
     "v1 rules, no stabilisers, report encoder": (dict(), dict(gamma=0.9), dict()),
@@ -53,14 +60,20 @@ def main() -> None:
         for seed in (0, 1, 2):
             venv = make_multiagent_vec_env(uav_coverage_v1.parallel_env, n_envs=2, seed=seed, env_kwargs=env_kwargs)
             model = MADDPG(
-                "CnnPolicy", venv, learning_starts=500, batch_size=64, buffer_size=20_000, seed=seed,
+                "CnnPolicy",
+                venv,
+                learning_starts=500,
+                batch_size=64,
+                buffer_size=20_000,
+                seed=seed,
                 action_noise=DecayingGaussianNoise(np.zeros(2), sigma=0.5, final_sigma=0.1, decay=0.9995),
-                policy_kwargs=dict(n_quantiles=10, features_extractor_kwargs=encoder), **algo,
+                policy_kwargs=dict(n_quantiles=10, features_extractor_kwargs=encoder),
+                **algo,
             )
             model.learn(4_000)
             rng = np.random.default_rng(seed)
-            random = episode_end_coverage(env_kwargs, lambda obs: rng.uniform(0, 1, (len(obs), 2)).astype(np.float32))
-            trained = episode_end_coverage(env_kwargs, lambda obs: model.predict(obs, deterministic=True)[0])
+            random = episode_end_coverage(env_kwargs, lambda obs, rng=rng: rng.uniform(0, 1, (len(obs), 2)).astype(np.float32))
+            trained = episode_end_coverage(env_kwargs, lambda obs, model=model: model.predict(obs, deterministic=True)[0])
             print(f"{name} | seed {seed} | random {random:.3f} | MADDPG {trained:.3f}", flush=True)
 
 

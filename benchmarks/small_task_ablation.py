@@ -12,7 +12,7 @@ import numpy as np
 import torch as th
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from test_maddpg_learning import UAV_V1_SMALL  # noqa: E402
+from test_maddpg_learning import UAV_V1_SMALL, episode_end_coverage  # noqa: E402
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env  # noqa: E402
 from sb3_maddpg.common.noise import DecayingGaussianNoise  # noqa: E402
@@ -44,15 +44,6 @@ VARIANTS = {
 }
 
 
-def episode_end_coverage(env_kwargs: dict, act, n_episodes: int = 8) -> float:
-    venv = make_multiagent_vec_env(uav_coverage_v1.parallel_env, n_envs=4, seed=100, env_kwargs=env_kwargs)
-    obs, coverage = venv.reset(), []
-    while len(coverage) < n_episodes:
-        obs, _, dones, infos = venv.step(act(obs))
-        coverage += [infos[row]["coverage"] for row in range(0, len(infos), 2) if dones[row]]
-    return float(np.mean(coverage[:n_episodes]))
-
-
 def main() -> None:
     th.set_num_threads(1)
     for name, (env_rules, algo, encoder) in VARIANTS.items():
@@ -72,8 +63,14 @@ def main() -> None:
             )
             model.learn(4_000)
             rng = np.random.default_rng(seed)
-            random = episode_end_coverage(env_kwargs, lambda obs, rng=rng: rng.uniform(0, 1, (len(obs), 2)).astype(np.float32))
-            trained = episode_end_coverage(env_kwargs, lambda obs, model=model: model.predict(obs, deterministic=True)[0])
+            random = episode_end_coverage(
+                uav_coverage_v1.parallel_env,
+                env_kwargs,
+                lambda obs, rng=rng: rng.uniform(0, 1, (len(obs), 2)).astype(np.float32),
+            )
+            trained = episode_end_coverage(
+                uav_coverage_v1.parallel_env, env_kwargs, lambda obs, model=model: model.predict(obs, deterministic=True)[0]
+            )
             print(f"{name} | seed {seed} | random {random:.3f} | MADDPG {trained:.3f}", flush=True)
 
 

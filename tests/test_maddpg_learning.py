@@ -18,6 +18,17 @@ def mean_episode_return(venv, act, n_episodes: int = 20) -> float:
     return float(np.mean(returns[:n_episodes]))
 
 
+def episode_end_coverage(env_fn, env_kwargs: dict, act, n_episodes: int = 8) -> float:
+    """Mean episode-end coverage c_T of the first n_episodes joint episodes of 4 copies (seed 100) under ``act``."""
+    venv = make_multiagent_vec_env(env_fn, n_envs=4, seed=100, env_kwargs=env_kwargs)
+    n_agents = venv.n_agents
+    obs, coverage = venv.reset(), []
+    while len(coverage) < n_episodes:
+        obs, _, dones, infos = venv.step(act(obs))
+        coverage += [infos[row]["coverage"] for row in range(0, len(infos), n_agents) if dones[row]]
+    return float(np.mean(coverage[:n_episodes]))
+
+
 @pytest.mark.parametrize(("cvar_alpha", "seed"), [(1.0, 0), (0.25, 1)])
 def test_mlp_policy_beats_random_on_cooperative_target_reaching(cvar_alpha, seed):
     """Risk-neutral (alpha = 1) and risk-averse (alpha = 0.25) critics both learn the cooperative task."""
@@ -74,14 +85,6 @@ def test_cnn_policy_raises_uav_coverage_over_random():
         reward_scale=10.0,
     )
 
-    def episode_end_coverage(act, n_episodes: int = 8) -> float:
-        venv = make_multiagent_vec_env(uav_coverage_v0.parallel_env, n_envs=4, seed=100, env_kwargs=env_kwargs)
-        obs, coverage = venv.reset(), []
-        while len(coverage) < n_episodes:
-            obs, _, dones, infos = venv.step(act(obs))
-            coverage += [infos[row]["coverage"] for row in range(0, len(infos), 2) if dones[row]]
-        return float(np.mean(coverage[:n_episodes]))
-
     venv = make_multiagent_vec_env(uav_coverage_v0.parallel_env, n_envs=2, seed=0, env_kwargs=env_kwargs)
     model = MADDPG(
         "CnnPolicy",
@@ -96,8 +99,12 @@ def test_cnn_policy_raises_uav_coverage_over_random():
     model.learn(4_000)
 
     rng = np.random.default_rng(0)
-    random_coverage = episode_end_coverage(lambda obs: rng.uniform(0, 1, (len(obs), 2)).astype(np.float32))
-    trained_coverage = episode_end_coverage(lambda obs: model.predict(obs, deterministic=True)[0])
+    random_coverage = episode_end_coverage(
+        uav_coverage_v0.parallel_env, env_kwargs, lambda obs: rng.uniform(0, 1, (len(obs), 2)).astype(np.float32)
+    )
+    trained_coverage = episode_end_coverage(
+        uav_coverage_v0.parallel_env, env_kwargs, lambda obs: model.predict(obs, deterministic=True)[0]
+    )
     print(f"\nepisode-end coverage over 8 episodes: random {random_coverage:.3f}, MADDPG {trained_coverage:.3f}")
     assert trained_coverage > random_coverage + 0.2
 
@@ -124,14 +131,6 @@ def test_cnn_policy_learns_small_uav_coverage_v1_with_every_seed(seed):
     """
     uav_coverage_v1 = pytest.importorskip("sb3_maddpg_envs.uav_coverage_v1")
 
-    def episode_end_coverage(act, n_episodes: int = 8) -> float:
-        venv = make_multiagent_vec_env(uav_coverage_v1.parallel_env, n_envs=4, seed=100, env_kwargs=UAV_V1_SMALL)
-        obs, coverage = venv.reset(), []
-        while len(coverage) < n_episodes:
-            obs, _, dones, infos = venv.step(act(obs))
-            coverage += [infos[row]["coverage"] for row in range(0, len(infos), 2) if dones[row]]
-        return float(np.mean(coverage[:n_episodes]))
-
     venv = make_multiagent_vec_env(uav_coverage_v1.parallel_env, n_envs=2, seed=seed, env_kwargs=UAV_V1_SMALL)
     model = MADDPG(
         "CnnPolicy",
@@ -152,7 +151,11 @@ def test_cnn_policy_learns_small_uav_coverage_v1_with_every_seed(seed):
     model.learn(4_000)
 
     rng = np.random.default_rng(seed)
-    random_coverage = episode_end_coverage(lambda obs: rng.uniform(0, 1, (len(obs), 2)).astype(np.float32))
-    trained_coverage = episode_end_coverage(lambda obs: model.predict(obs, deterministic=True)[0])
+    random_coverage = episode_end_coverage(
+        uav_coverage_v1.parallel_env, UAV_V1_SMALL, lambda obs: rng.uniform(0, 1, (len(obs), 2)).astype(np.float32)
+    )
+    trained_coverage = episode_end_coverage(
+        uav_coverage_v1.parallel_env, UAV_V1_SMALL, lambda obs: model.predict(obs, deterministic=True)[0]
+    )
     print(f"\nseed {seed}: episode-end coverage over 8 episodes: random {random_coverage:.3f}, MADDPG {trained_coverage:.3f}")
     assert trained_coverage > random_coverage + 0.2

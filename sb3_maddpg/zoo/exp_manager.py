@@ -3,6 +3,7 @@
 import inspect
 import os
 import pickle
+import socket
 import shutil
 import warnings
 from collections.abc import Callable
@@ -20,6 +21,7 @@ from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
+from sb3_maddpg.zoo.storage import create_shared_study, is_database_url
 
 # Keys of an RL Zoo YAML entry that RL Zoo consumes itself; every other key is an argument of the algorithm.
 ZOO_KEYS = frozenset(
@@ -117,6 +119,8 @@ class MultiAgentExperimentManager(ExperimentManager):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
+        # The Optuna trials this process has run (a shared study also holds other workers')
+        self._worker_trials: list[Any] = []
         if self.optimize_hyperparameters and self.n_jobs > 1:
             # Optuna would run the trials as threads of this one manager, which holds each trial's state
             # (hyperparameters, action noise, envs) in its attributes: the trials would overwrite each other's.
@@ -215,7 +219,35 @@ class MultiAgentExperimentManager(ExperimentManager):
                 raise UsageError(f"{key} applies only with noise_type: {DECAYING_NOISE} (in {self.config})")
         return super()._preprocess_action_noise(hyperparams, saved_hyperparams, env)
 
+    @property
+    def worker_name(self) -> str:
+        """This process in a shared study: ``host:pid``, stored in each trial's ``worker`` user attribute."""
+        return f"{socket.gethostname()}:{os.getpid()}"
+
+    def hyperparameters_optimization(self) -> None:
+        # Workers started together on a database storage would race to create Optuna's tables and the study, and all
+        # but one could crash; create (or load) the study here, safely, so that RL Zoo's create_study only loads it.
+        if is_database_url(self.storage):
+            create_shared_study(self.storage, self.study_name)
+        self._worker_trials = []
+        super().hyperparameters_optimization()
+        self._report_worker_trials()
+
+    def _report_worker_trials(self) -> None:
+        """Print the trials this worker ran, as they are in the study now (RL Zoo prints the study's best trial)."""
+        if not self._worker_trials:
+            print(f"Trials run by this worker ({self.worker_name}): none (--max-total-trials was reached)")
+            return
+        study = self._worker_trials[0].study
+        numbers = {trial.number for trial in self._worker_trials}
+        trials = [trial for trial in study.get_trials(deepcopy=False) if trial.number in numbers]
+        print(f"Trials run by this worker ({self.worker_name}): {len(trials)} of the study's {len(study.trials)}")
+        for trial in trials:
+            print(f"    trial {trial.number}: {trial.state.name} value={trial.value} params={trial.params}")
+
     def objective(self, trial: Any) -> float:
+        self._worker_trials.append(trial)
+        trial.set_user_attr("worker", self.worker_name)
         # Each trial gets a fresh copy of the YAML's action noise: the decaying noise counts its calls, and a shared
         # object would start every trial after the first with the previous trials' decay.
         noise = self._hyperparams.get("action_noise")

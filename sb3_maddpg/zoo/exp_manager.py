@@ -5,7 +5,6 @@ import os
 import pickle
 import socket
 import shutil
-import warnings
 from collections.abc import Callable
 from copy import deepcopy
 from typing import Any
@@ -93,18 +92,19 @@ def make_zoo_multiagent_vec_env(
     :param n_envs: environment copies (each contributes ``n_agents`` rows)
     :param seed: seed of the first copy
     :param env_kwargs: constructor arguments over the registered defaults
-    :param vec_env_class: RL Zoo's ``--vec-env`` choice; ``SubprocVecEnv`` runs the copies in worker processes
+    :param vec_env_class: RL Zoo's ``--vec-env`` choice; ``SubprocVecEnv`` runs the copies in worker processes (one
+        per CPU core, at most ``n_envs``), with the per-copy seeds they have in one process
     :return: the VecEnv
     """
     from sb3_maddpg import make_multiagent_vec_env
 
     check_env_kwargs(env_id, env_kwargs)
-    if vec_env_class is SubprocVecEnv:
-        # SuperSuit's multi-process concatenation hands overlapping seeds to its processes, so the copies of a
-        # multi-agent env always run in this process (the env steps at thousands of joint steps per second).
-        warnings.warn("--vec-env subproc is ignored for multi-agent envs: their copies run in one process", stacklevel=2)
     return make_multiagent_vec_env(
-        MULTIAGENT_ENVS[env_id].env_fn(), n_envs=n_envs, seed=seed, env_kwargs=dict(env_kwargs or {})
+        MULTIAGENT_ENVS[env_id].env_fn(),
+        n_envs=n_envs,
+        seed=seed,
+        env_kwargs=dict(env_kwargs or {}),
+        vec_env_cls="subproc" if vec_env_class is SubprocVecEnv else None,
     )
 
 
@@ -355,7 +355,7 @@ def create_multiagent_test_env(
     :param should_render: whether ``enjoy`` will render (``render_mode="human"`` where the env supports it)
     :param hyperparams: the run's saved hyperparameters (wrappers, normalisation, frame stacking)
     :param env_kwargs: constructor arguments
-    :param vec_env_cls: RL Zoo's VecEnv class choice
+    :param vec_env_cls: RL Zoo's VecEnv class choice (``SubprocVecEnv``: the copies in worker processes)
     :param vec_env_kwargs: unused for multi-agent envs
     :param _fallback: RL Zoo's original function, for single-agent env ids
     :return: the VecEnv
@@ -385,7 +385,7 @@ def create_multiagent_test_env(
     if can_render_human and "render_mode" not in env_kwargs:
         env_kwargs["render_mode"] = "human"
 
-    env: VecEnv = make_zoo_multiagent_vec_env(env_id, n_envs, seed, env_kwargs)
+    env: VecEnv = make_zoo_multiagent_vec_env(env_id, n_envs, seed, env_kwargs, vec_env_cls)
     if log_dir is not None:
         env = JointEpisodeMonitor(env, os.path.join(log_dir, "monitor.csv"))
 

@@ -188,7 +188,9 @@ def test_bad_storage_is_one_line_without_the_password(
     assert message in err and "secret" not in err
 
 
-def test_missing_driver_names_the_extra(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
+def test_missing_driver_names_the_extra(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
     from sb3_maddpg.__main__ import main
 
     monkeypatch.chdir(tmp_path)

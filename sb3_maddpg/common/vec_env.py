@@ -393,7 +393,9 @@ class SubprocMultiAgentVecEnv(VecEnv):
         self.remotes, self.processes = [], []
         for p in range(n_processes):
             copies = self.first_copies[p + 1] - self.first_copies[p]
-            make_venv = CloudpickleWrapper(lambda copies=copies: make_multiagent_vec_env(env_fn, copies, env_kwargs=env_kwargs))
+            make_venv = CloudpickleWrapper(
+                lambda copies=copies: make_multiagent_vec_env(env_fn, copies, env_kwargs=env_kwargs)
+            )
             remote, work_remote = context.Pipe()
             process = context.Process(target=_subproc_worker, args=(work_remote, remote, make_venv), daemon=True)
             process.start()
@@ -560,9 +562,7 @@ def _check_vec_env_cls(vec_env_cls: Any, n_processes: int | None) -> bool:
     elif vec_env_cls in ("subproc", SubprocVecEnv):
         subproc = True
     else:
-        raise ValueError(
-            f"vec_env_cls must be None, 'dummy', 'subproc', DummyVecEnv or SubprocVecEnv, got {vec_env_cls!r}"
-        )
+        raise ValueError(f"vec_env_cls must be None, 'dummy', 'subproc', DummyVecEnv or SubprocVecEnv, got {vec_env_cls!r}")
     if n_processes is not None:
         if isinstance(n_processes, bool) or not isinstance(n_processes, Integral) or n_processes < 1:
             raise ValueError(f"n_processes must be None or an integer >= 1 (worker processes), got {n_processes!r}")

@@ -3,8 +3,8 @@
 import inspect
 import os
 import pickle
-import socket
 import shutil
+import socket
 from collections.abc import Callable
 from copy import deepcopy
 from typing import Any

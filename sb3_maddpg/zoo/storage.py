@@ -35,7 +35,9 @@ def _driver_hint(backend: str, driver: str) -> str:
     if backend == "postgresql" and driver == "psycopg":
         return f"install the postgres extra: {POSTGRES_EXTRA}"
     if backend == "postgresql":
-        return f"install {driver}, or use a postgresql:// URL (driver psycopg) and install the postgres extra: {POSTGRES_EXTRA}"
+        return (
+            f"install {driver}, or use a postgresql:// URL (driver psycopg) and install the postgres extra: {POSTGRES_EXTRA}"
+        )
     if backend in ("mysql", "mariadb"):
         return "install a MySQL driver, e.g. pip install pymysql, and use a mysql+pymysql:// URL"
     return "install the database driver SQLAlchemy names for this URL"
@@ -70,7 +72,9 @@ def check_storage(storage: str) -> None:
     try:
         dialect.import_dbapi()
     except ImportError as error:
-        raise UsageError(f"--storage: no driver for {url.drivername} URLs ({error}); {_driver_hint(backend, url.get_driver_name())}") from error
+        raise UsageError(
+            f"--storage: no driver for {url.drivername} URLs ({error}); {_driver_hint(backend, url.get_driver_name())}"
+        ) from error
 
     address = f"{url.host}:{url.port or _default_port(backend)}"
     connect_args: dict[str, Any] = {"connect_timeout": CONNECT_TIMEOUT_S} if backend in ("postgresql", "mysql") else {}

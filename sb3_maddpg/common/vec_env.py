@@ -133,7 +133,52 @@ class _SeparateResetInfos(BaseParallelWrapper):
         return observations, {agent: {} for agent in observations}
 
 
-class MultiAgentVecEnv(VecEnvWrapper):
+class _CopySeeds:
+    """
+    Seeding and reset replay shared by :class:`MultiAgentVecEnv` and :class:`SubprocMultiAgentVecEnv`: copy c is
+    seeded with ``seed + c`` at the next reset, wherever it runs.
+    """
+
+    n_agents: int
+    n_copies: int
+    num_envs: int
+    _base_seed: int | None
+    _pending_reset_states: list[dict[str, Any]] | None
+
+    def seed(self, seed: int | None = None) -> list[int | None]:
+        """
+        Seed the copies at the next reset: copy c gets ``seed + c``.
+
+        :param seed: base seed; a random one when None
+        :return: the seed of each row
+        """
+        if seed is None:
+            seed = int(np.random.randint(0, np.iinfo(np.uint32).max, dtype=np.uint32))
+        self._base_seed = int(seed)
+        return [self._base_seed + row // self.n_agents for row in range(self.num_envs)]
+
+    def set_options(self, options: list[dict] | dict | None = None) -> None:
+        """Options for the next reset (the first copy's options are passed to every copy)."""
+        VecEnv.set_options(self, options)  # type: ignore[arg-type]
+
+    def restore_reset_states(self, states: list[dict[str, Any]]) -> bool:
+        """
+        Make the next ``reset()`` replay the resets recorded by :meth:`reset_states` (of another VecEnv with the same
+        env and number of copies): each copy is reset with its recorded seed, then, if its recorded reset was not
+        seeded, its generator is set to the recorded state and it is reset again. For an env whose reset depends only
+        on its seed history and its generator (``uav_coverage``, ``start="fixed"`` or ``"random"``), the copies then
+        start exactly where the recorded ones were after their last reset.
+
+        :param states: from :meth:`reset_states`
+        :return: whether they can be replayed (same number of copies, every recorded seed known)
+        """
+        if len(states) != self.n_copies or any(state.get("seed") is None for state in states):
+            return False
+        self._pending_reset_states = deepcopy(states)
+        return True
+
+
+class MultiAgentVecEnv(_CopySeeds, VecEnvWrapper):
     """
     SuperSuit's SB3 VecEnv of a PettingZoo ParallelEnv, with what it lacks under gymnasium 1.x.
 
@@ -210,22 +255,6 @@ class MultiAgentVecEnv(VecEnvWrapper):
     def env_is_wrapped(self, wrapper_class: type, indices: VecEnvIndices = None) -> list[bool]:
         return [False for _ in self._get_indices(indices)]
 
-    def seed(self, seed: int | None = None) -> list[int | None]:
-        """
-        Seed the copies at the next reset: copy c gets ``seed + c``.
-
-        :param seed: base seed; a random one when None
-        :return: the seed of each row
-        """
-        if seed is None:
-            seed = int(np.random.randint(0, np.iinfo(np.uint32).max, dtype=np.uint32))
-        self._base_seed = int(seed)
-        return [self._base_seed + row // self.n_agents for row in range(self.num_envs)]
-
-    def set_options(self, options: list[dict] | dict | None = None) -> None:
-        """Options for the next reset (the first copy's options are passed to every copy)."""
-        VecEnv.set_options(self, options)
-
     def reset_states(self) -> list[dict[str, Any]]:
         """
         What replays each copy's last reset: the seed of its last seeded reset, and, when its last reset was not
@@ -235,22 +264,6 @@ class MultiAgentVecEnv(VecEnvWrapper):
         :return: one dict per copy
         """
         return [deepcopy(markov_env.par_env.reset_record) for markov_env in self._gym_vec_env.vec_envs]
-
-    def restore_reset_states(self, states: list[dict[str, Any]]) -> bool:
-        """
-        Make the next ``reset()`` replay the resets recorded by :meth:`reset_states` (of another VecEnv with the same
-        env and number of copies): each copy is reset with its recorded seed, then, if its recorded reset was not
-        seeded, its generator is set to the recorded state and it is reset again. For an env whose reset depends only
-        on its seed history and its generator (``uav_coverage``, ``start="fixed"`` or ``"random"``), the copies then
-        start exactly where the recorded ones were after their last reset.
-
-        :param states: from :meth:`reset_states`
-        :return: whether they can be replayed (same number of copies, every recorded seed known)
-        """
-        if len(states) != self.n_copies or any(state.get("seed") is None for state in states):
-            return False
-        self._pending_reset_states = deepcopy(states)
-        return True
 
     def _replay_resets(self, states: list[dict[str, Any]], options: dict | None) -> np.ndarray:
         observations = []
@@ -357,7 +370,7 @@ def _subproc_worker(remote: Any, parent_remote: Any, make_venv: CloudpickleWrapp
             remote.send(("ok", reply))
 
 
-class SubprocMultiAgentVecEnv(VecEnv):
+class SubprocMultiAgentVecEnv(_CopySeeds, VecEnv):
     """
     The multi-agent VecEnv of :func:`make_multiagent_vec_env` with its copies in worker processes.
 
@@ -449,18 +462,6 @@ class SubprocMultiAgentVecEnv(VecEnv):
             local.append(row - self.first_copies[worker] * self.n_agents)
         return rows_by_worker
 
-    def seed(self, seed: int | None = None) -> list[int | None]:
-        """
-        Seed the copies at the next reset: copy c gets ``seed + c``, whichever process runs it.
-
-        :param seed: base seed; a random one when None
-        :return: the seed of each row
-        """
-        if seed is None:
-            seed = int(np.random.randint(0, np.iinfo(np.uint32).max, dtype=np.uint32))
-        self._base_seed = int(seed)
-        return [self._base_seed + row // self.n_agents for row in range(self.num_envs)]
-
     def reset(self) -> np.ndarray:
         options = self._options[0] if self._options and self._options[0] else None
         states = self._pending_reset_states
@@ -500,17 +501,6 @@ class SubprocMultiAgentVecEnv(VecEnv):
         if self.closed:
             return deepcopy(self._final_reset_states)
         return [state for p in range(self.n_processes) for state in self._call(p, "reset_states")]
-
-    def restore_reset_states(self, states: list[dict[str, Any]]) -> bool:
-        """As :meth:`MultiAgentVecEnv.restore_reset_states`."""
-        if len(states) != self.n_copies or any(state.get("seed") is None for state in states):
-            return False
-        self._pending_reset_states = deepcopy(states)
-        return True
-
-    def set_options(self, options: list[dict] | dict | None = None) -> None:
-        """Options for the next reset (the first copy's options are passed to every copy)."""
-        VecEnv.set_options(self, options)
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         """Attribute of the ParallelEnv behind each row (rows of one copy share their env)."""

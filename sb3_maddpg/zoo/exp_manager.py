@@ -230,7 +230,13 @@ class MultiAgentExperimentManager(ExperimentManager):
         if is_database_url(self.storage):
             create_shared_study(self.storage, self.study_name)
         self._worker_trials = []
-        super().hyperparameters_optimization()
+        try:
+            super().hyperparameters_optimization()
+        except ValueError as error:
+            # RL Zoo asks for the best trial even when none has completed (every trial of the study pruned or failed)
+            if "No trials are completed yet" not in str(error):
+                raise
+            print(f"No trial of the study {self.study_name!r} has completed yet (all were pruned or failed): no best trial")
         self._report_worker_trials()
 
     def _report_worker_trials(self) -> None:

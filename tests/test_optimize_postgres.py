@@ -11,7 +11,6 @@ import socket
 import subprocess
 import sys
 import tempfile
-import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -90,6 +89,20 @@ def fresh_database(server_url: str) -> str:
     return url.set(database=name).render_as_string(hide_password=False)
 
 
+# Generous limits: the workers take seconds on an idle machine, but far longer on one busy with other work
+WORKER_TIMEOUT_S = 900
+
+
+def _outputs(workers: list[subprocess.Popen]) -> list[str]:
+    """Wait for the workers and return their outputs; kill them all if one has not ended within the limit."""
+    try:
+        return [worker.communicate(timeout=WORKER_TIMEOUT_S)[0] for worker in workers]
+    except subprocess.TimeoutExpired:
+        for worker in workers:
+            worker.kill()
+        pytest.fail(f"the worker processes had not ended after {WORKER_TIMEOUT_S} s")
+
+
 def _python(code_or_args: list[str], cwd: Path) -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, *code_or_args], cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
@@ -99,16 +112,20 @@ def _python(code_or_args: list[str], cwd: Path) -> subprocess.Popen:
 def test_workers_started_together_create_one_study(fresh_database: str, tmp_path: Path) -> None:
     # Three processes open the empty database at the same instant: without the retry, all but one fail while
     # creating Optuna's tables (IntegrityError from PostgreSQL's catalogue).
-    start_at = time.time() + 6.0
+    # After its imports, each process waits until all three are ready, so that they open the database together.
     code = (
-        "import sys, time\n"
+        "import os, sys, time\n"
+        "import optuna, psycopg, sqlalchemy\n"
         "from sb3_maddpg.zoo.storage import create_shared_study\n"
-        "start_at = float(sys.argv[2])\n"
-        "while time.time() < start_at: pass\n"
+        "ready = sys.argv[2]\n"
+        "open(os.path.join(ready, str(os.getpid())), 'w').close()\n"
+        "while len(os.listdir(ready)) < 3: time.sleep(0.001)\n"
         "print('study', create_shared_study(sys.argv[1], 'race')._study_id)\n"
     )
-    workers = [_python(["-c", code, fresh_database, str(start_at)], tmp_path) for _ in range(3)]
-    outputs = [worker.communicate(timeout=120)[0] for worker in workers]
+    ready = tmp_path / "ready"
+    ready.mkdir()
+    workers = [_python(["-c", code, fresh_database, str(ready)], tmp_path) for _ in range(3)]
+    outputs = _outputs(workers)
     assert [worker.returncode for worker in workers] == [0, 0, 0], outputs
     study_ids = {line.split()[1] for output in outputs for line in output.splitlines() if line.startswith("study ")}
     assert len(study_ids) == 1, outputs
@@ -124,7 +141,7 @@ def test_two_optimize_workers_share_one_study(fresh_database: str, tmp_path: Pat
         folder.mkdir()
         argv = ["-m", "sb3_maddpg", "optimize", *TINY_OPTIMIZE, "--storage", fresh_database, "--study-name", study_name]
         workers.append(_python([*argv, "--seed", str(seed)], folder))
-    outputs = [worker.communicate(timeout=300)[0] for worker in workers]
+    outputs = _outputs(workers)
     assert [worker.returncode for worker in workers] == [0, 0], "\n\n".join(output[-3000:] for output in outputs)
 
     # A third process reads the study and its best trial

@@ -159,6 +159,8 @@ def test_two_optimize_workers_share_one_study(fresh_database: str, tmp_path: Pat
     counted = [trial for trial in trials if trial.state in (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)]
     # --max-total-trials bounds the trials of all workers together, and none is left running
     assert len(counted) == MAX_TOTAL_TRIALS, [(trial.number, trial.state) for trial in trials]
+    # a trial asked for by two workers passing RL Zoo's check together is recorded as not run
+    assert all("not_run" in trial.user_attrs for trial in trials if trial.state == optuna.trial.TrialState.FAIL)
     assert not [trial for trial in trials if trial.state == optuna.trial.TrialState.RUNNING]
     numbers = [trial.number for trial in trials]
     assert len(set(numbers)) == len(numbers)
@@ -218,3 +220,19 @@ def test_missing_driver_names_the_extra(
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert 'pip install "sb3_maddpg[zoo,postgres]"' in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_trials_beyond_max_total_trials_are_not_run() -> None:
+    optuna = pytest.importorskip("optuna")
+    from sb3_maddpg.zoo.storage import beyond_max_total_trials
+
+    study = optuna.create_study(direction="maximize")
+    # two workers each asked for a trial after 3 of a bound of 4: trial 3 runs, trial 4 must not
+    for _ in range(3):
+        study.tell(study.ask(), 1.0)
+    third, fourth = study.ask(), study.ask()
+    assert not beyond_max_total_trials(third, 4) and beyond_max_total_trials(fourth, 4)
+    assert not beyond_max_total_trials(fourth, None) and not beyond_max_total_trials(fourth, 5)
+    # a failed trial does not count (RL Zoo's count: complete, pruned, running)
+    study.tell(third, state=optuna.trial.TrialState.FAIL)
+    assert not beyond_max_total_trials(fourth, 4)

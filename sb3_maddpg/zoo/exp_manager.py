@@ -20,7 +20,7 @@ from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
-from sb3_maddpg.zoo.storage import create_shared_study, is_database_url
+from sb3_maddpg.zoo.storage import beyond_max_total_trials, create_shared_study, is_database_url
 
 # Keys of an RL Zoo YAML entry that RL Zoo consumes itself; every other key is an argument of the algorithm.
 ZOO_KEYS = frozenset(
@@ -249,11 +249,17 @@ class MultiAgentExperimentManager(ExperimentManager):
         trials = [trial for trial in study.get_trials(deepcopy=False) if trial.number in numbers]
         print(f"Trials run by this worker ({self.worker_name}): {len(trials)} of the study's {len(study.trials)}")
         for trial in trials:
-            print(f"    trial {trial.number}: {trial.state.name} value={trial.value} params={trial.params}")
+            note = f" (not run: {trial.user_attrs['not_run']})" if "not_run" in trial.user_attrs else ""
+            print(f"    trial {trial.number}: {trial.state.name}{note} value={trial.value} params={trial.params}")
 
     def objective(self, trial: Any) -> float:
         self._worker_trials.append(trial)
         trial.set_user_attr("worker", self.worker_name)
+        if beyond_max_total_trials(trial, self.max_total_trials):
+            # Not run: recorded as failed (a NaN value), which RL Zoo's count leaves out, and this worker stops
+            trial.set_user_attr("not_run", f"--max-total-trials {self.max_total_trials} reached by other workers")
+            trial.study.stop()
+            return float("nan")
         # Each trial gets a fresh copy of the YAML's action noise: the decaying noise counts its calls, and a shared
         # object would start every trial after the first with the previous trials' decay.
         noise = self._hyperparams.get("action_noise")

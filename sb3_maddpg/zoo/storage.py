@@ -118,3 +118,23 @@ def create_shared_study(storage: str, study_name: str | None, direction: str = "
             # Random back-off, so that the workers that lost do not collide again
             time.sleep(0.2 * (attempt + 1) * (1.0 + random.random()))
     raise AssertionError("unreachable")
+
+
+def beyond_max_total_trials(trial: Any, max_total_trials: int | None) -> bool:
+    """
+    Whether a new trial would exceed ``--max-total-trials`` over all workers. RL Zoo's ``MaxTrialsCallback`` checks
+    the count after each trial, and two workers that pass that check together both ask for one more trial. Optuna
+    numbers the trials in the order it creates them, so the trials beyond the bound are those with
+    ``max_total_trials`` counted trials (complete, pruned or running: RL Zoo's count) before them.
+
+    :param trial: the ``optuna.Trial`` just created
+    :param max_total_trials: the bound, or None
+    :return: whether the trial must not run
+    """
+    if max_total_trials is None:
+        return False
+    from optuna.trial import TrialState
+
+    counted = (TrialState.COMPLETE, TrialState.PRUNED, TrialState.RUNNING)
+    earlier = [other for other in trial.study.get_trials(deepcopy=False, states=counted) if other.number < trial.number]
+    return len(earlier) >= max_total_trials

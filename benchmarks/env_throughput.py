@@ -111,11 +111,11 @@ def table(rows: list[tuple[str, str, int, float]]) -> str:
     return "\n".join(lines)
 
 
-def write_section(text: str, path: Path = DOCS) -> None:
-    """Replace (or append) the ``## Environment throughput`` section of ``path``, leaving the other sections alone."""
+def write_section(text: str, path: Path = DOCS, title: str = SECTION) -> None:
+    """Replace (or append) the ``## <title>`` section of ``path``, leaving the other sections alone."""
     content = path.read_text() if path.exists() else "# Benchmarks\n"
-    section = f"## {SECTION}\n\n{text.strip()}\n"
-    pattern = re.compile(rf"^## {re.escape(SECTION)}\n.*?(?=^## |\Z)", re.MULTILINE | re.DOTALL)
+    section = f"## {title}\n\n{text.strip()}\n"
+    pattern = re.compile(rf"^## {re.escape(title)}\n.*?(?=^## |\Z)", re.MULTILINE | re.DOTALL)
     if pattern.search(content):
         content = pattern.sub(lambda _: section + "\n", content, count=1).rstrip() + "\n"
     else:

@@ -175,6 +175,7 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     :return: the arguments RL Zoo's parser gets
     """
     from sb3_maddpg.zoo.registry import is_multiagent_env
+    from sb3_maddpg.zoo.storage import check_storage, is_database_url
 
     argv = list(argv)
     if _has_flag(argv, "-h", "--help"):
@@ -251,7 +252,9 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
             folder.mkdir(parents=True, exist_ok=True)
             storage = f"sqlite:///{folder / 'optuna.db'}"
             argv += ["--storage", storage]
-        elif "://" not in storage and not storage.endswith(".log"):
+        elif is_database_url(storage):
+            check_storage(storage)
+        elif not storage.endswith(".log"):
             # A plain file name means a local SQLite database.
             Path(storage).parent.mkdir(parents=True, exist_ok=True)
             argv = [f"--storage=sqlite:///{storage}" if arg == f"--storage={storage}" else arg for arg in argv]

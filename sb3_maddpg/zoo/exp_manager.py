@@ -4,7 +4,7 @@ import inspect
 import os
 import pickle
 import shutil
-import warnings
+import socket
 from collections.abc import Callable
 from copy import deepcopy
 from typing import Any
@@ -20,6 +20,7 @@ from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
+from sb3_maddpg.zoo.storage import beyond_max_total_trials, create_shared_study, is_database_url
 
 # Keys of an RL Zoo YAML entry that RL Zoo consumes itself; every other key is an argument of the algorithm.
 ZOO_KEYS = frozenset(
@@ -91,18 +92,19 @@ def make_zoo_multiagent_vec_env(
     :param n_envs: environment copies (each contributes ``n_agents`` rows)
     :param seed: seed of the first copy
     :param env_kwargs: constructor arguments over the registered defaults
-    :param vec_env_class: RL Zoo's ``--vec-env`` choice; ``SubprocVecEnv`` runs the copies in worker processes
+    :param vec_env_class: RL Zoo's ``--vec-env`` choice; ``SubprocVecEnv`` runs the copies in worker processes (one
+        per CPU core, at most ``n_envs``), with the per-copy seeds they have in one process
     :return: the VecEnv
     """
     from sb3_maddpg import make_multiagent_vec_env
 
     check_env_kwargs(env_id, env_kwargs)
-    if vec_env_class is SubprocVecEnv:
-        # SuperSuit's multi-process concatenation hands overlapping seeds to its processes, so the copies of a
-        # multi-agent env always run in this process (the env steps at thousands of joint steps per second).
-        warnings.warn("--vec-env subproc is ignored for multi-agent envs: their copies run in one process", stacklevel=2)
     return make_multiagent_vec_env(
-        MULTIAGENT_ENVS[env_id].env_fn(), n_envs=n_envs, seed=seed, env_kwargs=dict(env_kwargs or {})
+        MULTIAGENT_ENVS[env_id].env_fn(),
+        n_envs=n_envs,
+        seed=seed,
+        env_kwargs=dict(env_kwargs or {}),
+        vec_env_cls="subproc" if vec_env_class is SubprocVecEnv else None,
     )
 
 
@@ -117,6 +119,8 @@ class MultiAgentExperimentManager(ExperimentManager):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
+        # The Optuna trials this process has run (a shared study also holds other workers')
+        self._worker_trials: list[Any] = []
         if self.optimize_hyperparameters and self.n_jobs > 1:
             # Optuna would run the trials as threads of this one manager, which holds each trial's state
             # (hyperparameters, action noise, envs) in its attributes: the trials would overwrite each other's.
@@ -215,7 +219,47 @@ class MultiAgentExperimentManager(ExperimentManager):
                 raise UsageError(f"{key} applies only with noise_type: {DECAYING_NOISE} (in {self.config})")
         return super()._preprocess_action_noise(hyperparams, saved_hyperparams, env)
 
+    @property
+    def worker_name(self) -> str:
+        """This process in a shared study: ``host:pid``, stored in each trial's ``worker`` user attribute."""
+        return f"{socket.gethostname()}:{os.getpid()}"
+
+    def hyperparameters_optimization(self) -> None:
+        # Workers started together on a database storage would race to create Optuna's tables and the study, and all
+        # but one could crash; create (or load) the study here, safely, so that RL Zoo's create_study only loads it.
+        if is_database_url(self.storage):
+            create_shared_study(self.storage, self.study_name)
+        self._worker_trials = []
+        try:
+            super().hyperparameters_optimization()
+        except ValueError as error:
+            # RL Zoo asks for the best trial even when none has completed (every trial of the study pruned or failed)
+            if "No trials are completed yet" not in str(error):
+                raise
+            print(f"No trial of the study {self.study_name!r} has completed yet (all were pruned or failed): no best trial")
+        self._report_worker_trials()
+
+    def _report_worker_trials(self) -> None:
+        """Print the trials this worker ran, as they are in the study now (RL Zoo prints the study's best trial)."""
+        if not self._worker_trials:
+            print(f"Trials run by this worker ({self.worker_name}): none (--max-total-trials was reached)")
+            return
+        study = self._worker_trials[0].study
+        numbers = {trial.number for trial in self._worker_trials}
+        trials = [trial for trial in study.get_trials(deepcopy=False) if trial.number in numbers]
+        print(f"Trials run by this worker ({self.worker_name}): {len(trials)} of the study's {len(study.trials)}")
+        for trial in trials:
+            note = f" (not run: {trial.user_attrs['not_run']})" if "not_run" in trial.user_attrs else ""
+            print(f"    trial {trial.number}: {trial.state.name}{note} value={trial.value} params={trial.params}")
+
     def objective(self, trial: Any) -> float:
+        self._worker_trials.append(trial)
+        trial.set_user_attr("worker", self.worker_name)
+        if beyond_max_total_trials(trial, self.max_total_trials):
+            # Not run: recorded as failed (a NaN value), which RL Zoo's count leaves out, and this worker stops
+            trial.set_user_attr("not_run", f"--max-total-trials {self.max_total_trials} reached by other workers")
+            trial.study.stop()
+            return float("nan")
         # Each trial gets a fresh copy of the YAML's action noise: the decaying noise counts its calls, and a shared
         # object would start every trial after the first with the previous trials' decay.
         noise = self._hyperparams.get("action_noise")
@@ -323,7 +367,7 @@ def create_multiagent_test_env(
     :param should_render: whether ``enjoy`` will render (``render_mode="human"`` where the env supports it)
     :param hyperparams: the run's saved hyperparameters (wrappers, normalisation, frame stacking)
     :param env_kwargs: constructor arguments
-    :param vec_env_cls: RL Zoo's VecEnv class choice
+    :param vec_env_cls: RL Zoo's VecEnv class choice (``SubprocVecEnv``: the copies in worker processes)
     :param vec_env_kwargs: unused for multi-agent envs
     :param _fallback: RL Zoo's original function, for single-agent env ids
     :return: the VecEnv
@@ -353,7 +397,7 @@ def create_multiagent_test_env(
     if can_render_human and "render_mode" not in env_kwargs:
         env_kwargs["render_mode"] = "human"
 
-    env: VecEnv = make_zoo_multiagent_vec_env(env_id, n_envs, seed, env_kwargs)
+    env: VecEnv = make_zoo_multiagent_vec_env(env_id, n_envs, seed, env_kwargs, vec_env_cls)
     if log_dir is not None:
         env = JointEpisodeMonitor(env, os.path.join(log_dir, "monitor.csv"))
 

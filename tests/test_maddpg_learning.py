@@ -18,6 +18,19 @@ def mean_episode_return(venv, act, n_episodes: int = 20) -> float:
     return float(np.mean(returns[:n_episodes]))
 
 
+# The small coverage task of the CNN learning tests: an 8x8 map seen as 16x16 images, 2 UAVs starting in the middle,
+# 4 PoIs in the top-right corner, 20-step episodes.
+UAV_SMALL = dict(
+    map_size=8,
+    obs_size=16,
+    n_uavs=2,
+    max_cycles=20,
+    pois=np.array([[6.0, 6.0], [6.5, 6.0], [6.0, 6.5], [7.0, 7.0]]),
+    start=np.array([[4.0, 4.0], [4.5, 4.0]]),
+    coverage_range=1.5,
+)
+
+
 def episode_end_coverage(env_fn, env_kwargs: dict, act, n_episodes: int = 8) -> float:
     """Mean episode-end coverage c_T of the first n_episodes joint episodes of 4 copies (seed 100) under ``act``."""
     venv = make_multiagent_vec_env(env_fn, n_envs=4, seed=100, env_kwargs=env_kwargs)
@@ -78,13 +91,7 @@ def test_cnn_policy_raises_uav_coverage_over_random():
     """
     uav_coverage_v0 = pytest.importorskip("sb3_maddpg_envs.uav_coverage_v0")
     env_kwargs = dict(
-        map_size=8,
-        obs_size=16,
-        n_uavs=2,
-        max_cycles=20,
-        pois=np.array([[6.0, 6.0], [6.5, 6.0], [6.0, 6.5], [7.0, 7.0]]),
-        start=np.array([[4.0, 4.0], [4.5, 4.0]]),
-        coverage_range=1.5,
+        **UAV_SMALL,
         wall_penalty=0.5,
         comm_penalty=0.0,
         entropy_coef=0.0,
@@ -116,16 +123,7 @@ def test_cnn_policy_raises_uav_coverage_over_random():
     assert trained_coverage > random_coverage + 0.2
 
 
-UAV_V1_SMALL = dict(
-    map_size=8,
-    obs_size=16,
-    n_uavs=2,
-    max_cycles=20,
-    pois=np.array([[6.0, 6.0], [6.5, 6.0], [6.0, 6.5], [7.0, 7.0]]),
-    start=np.array([[4.0, 4.0], [4.5, 4.0]]),
-    coverage_range=1.5,
-    fairness_coef=0.0,
-)
+UAV_V1_SMALL = dict(**UAV_SMALL, fairness_coef=0.0)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -97,3 +97,65 @@ def test_quantile_regression_recovers_midpoint_quantiles():
         quantile_huber_loss(z, samples).sum().backward()
         opt.step()
     assert th.allclose(z.detach(), th.tensor([[12.5, 37.5, 62.0, 87.0]]), atol=1.5)
+
+
+def _plain_quantile_huber_loss(current, target, taus, kappa):
+    """The loss written out as in its docstring, differentiated by autograd: the reference of the fused form."""
+    delta = target.unsqueeze(-2) - current.unsqueeze(-1)
+    huber = th.where(delta.abs() <= kappa, 0.5 * delta**2, kappa * (delta.abs() - 0.5 * kappa))
+    weight = (taus.unsqueeze(-1) - (delta.detach() < 0).to(delta.dtype)).abs()
+    return (weight * huber / kappa).mean(dim=-1).sum(dim=-1)
+
+
+@pytest.mark.parametrize("kappa", [1.0, 0.25, 3.0])
+@pytest.mark.parametrize(("leading", "n", "m"), [((), 1, 1), ((7,), 5, 3), ((6, 3), 25, 25), ((2, 4, 3), 4, 9)])
+def test_fused_quantile_huber_loss_equals_the_formula_and_its_gradient(kappa, leading, n, m):
+    generator = th.Generator().manual_seed(n * 100 + m)
+    current = (th.randn(*leading, n, generator=generator, dtype=th.float64) * 2).requires_grad_()
+    target = th.randn(*leading, m, generator=generator, dtype=th.float64) * 3
+    target[..., 0] = current.detach()[..., 0]  # a zero difference: where the weight switches
+    taus = th.rand(n, generator=generator, dtype=th.float64)
+    weights = th.randn(leading, generator=generator, dtype=th.float64)  # any upstream gradient
+
+    expected = _plain_quantile_huber_loss(current, target, taus, kappa)
+    (expected_grad,) = th.autograd.grad((expected * weights).sum(), current)
+    fused = quantile_huber_loss(current, target, taus, kappa)
+    (fused_grad,) = th.autograd.grad((fused * weights).sum(), current)
+
+    assert fused.shape == expected.shape == leading
+    assert th.allclose(fused, expected, rtol=1e-12, atol=1e-12)
+    assert th.allclose(fused_grad, expected_grad, rtol=1e-12, atol=1e-12)
+
+
+def test_fused_quantile_huber_loss_float32_and_reused_workspace():
+    current = th.randn(64, 3, 25, requires_grad=True)
+    target = th.randn(64, 3, 25) * 3
+    taus = quantile_midpoints(25)
+    first = quantile_huber_loss(current, target)
+    kept = first.detach().clone()
+    # A second call of the same shape reuses the scratch tensors: the first result must not change
+    quantile_huber_loss(current * 2, target + 1)
+    assert th.equal(first.detach(), kept)
+    assert th.allclose(first, _plain_quantile_huber_loss(current, target, taus, 1.0), rtol=1e-5, atol=1e-6)
+    first.sum().backward()
+    expected = current.detach().clone().requires_grad_()
+    _plain_quantile_huber_loss(expected, target, taus, 1.0).sum().backward()
+    assert th.allclose(current.grad, expected.grad, rtol=1e-5, atol=1e-6)
+
+
+def test_fused_quantile_huber_loss_large_inputs_are_not_cached(monkeypatch):
+    from sb3_maddpg.common import distributional
+
+    monkeypatch.setattr(distributional, "_WORKSPACE_MAX_ELEMENTS", 10)
+    monkeypatch.setattr(distributional, "_WORKSPACES", {})
+    current, target = th.randn(4, 5), th.randn(4, 6)
+    loss = quantile_huber_loss(current, target)
+    assert distributional._WORKSPACES == {}
+    assert th.allclose(loss, _plain_quantile_huber_loss(current, target, quantile_midpoints(5), 1.0), atol=1e-6)
+
+
+def test_fused_quantile_huber_loss_passes_no_gradient_to_the_targets():
+    current = th.randn(3, 4, requires_grad=True)
+    target = th.randn(3, 4, requires_grad=True)
+    quantile_huber_loss(current, target).sum().backward()
+    assert current.grad is not None and target.grad is None

@@ -21,6 +21,69 @@ def quantile_midpoints(n_quantiles: int, device: th.device | str = "cpu") -> th.
     return (th.arange(n_quantiles, device=device, dtype=th.float32) + 0.5) / n_quantiles
 
 
+# Scratch tensors of the fused loss, reused between calls: four fresh (..., n, m) tensors per call cost more in
+# allocation and first-touch page faults than the arithmetic on them (they are too large for the allocator's free
+# lists). One set per (shape, dtype, device); the loss never returns or saves them.
+_WORKSPACES: dict[tuple[tuple[int, ...], th.dtype, th.device], tuple[th.Tensor, ...]] = {}
+
+
+_WORKSPACE_MAX_ELEMENTS = 1 << 22  # 16 MB per float32 tensor; larger ones are allocated per call (and freed)
+
+
+def _workspace(shape: tuple[int, ...], dtype: th.dtype, device: th.device) -> tuple[th.Tensor, ...]:
+    if math.prod(shape) > _WORKSPACE_MAX_ELEMENTS:
+        return tuple(th.empty(shape, dtype=dtype, device=device) for _ in range(4))
+    key = (shape, dtype, device)
+    buffers = _WORKSPACES.get(key)
+    if buffers is None:
+        if len(_WORKSPACES) >= 8:  # a few shapes are in use at a time (training and evaluation batches)
+            _WORKSPACES.clear()
+        buffers = tuple(th.empty(shape, dtype=dtype, device=device) for _ in range(4))
+        _WORKSPACES[key] = buffers
+    return buffers
+
+
+class _FusedQuantileHuberLoss(th.autograd.Function):
+    """
+    The quantile Huber loss and its gradient in one pass over the (..., n, m) pairwise differences.
+
+    Autograd through the plain formula keeps about a dozen (..., n, m) temporaries for the backward pass and walks
+    over them twice; here the forward pass computes the loss and, from the same differences, the gradient with
+    respect to the current quantiles (the only input that needs one), and keeps only that (..., n) gradient.
+
+    With delta = t_k - z_j and c = clamp(delta, -kappa, kappa): huber_kappa(delta) = c (delta - c / 2), and its
+    derivative in delta is c. The weight |tau_j - 1{delta < 0}| is tau_j where delta >= 0 and 1 - tau_j where
+    delta < 0, so it leaves the sum over k once the negative differences are summed apart:
+    sum_k w h(delta) = tau_j sum_k h(delta) + (1 - 2 tau_j) sum_k h(min(delta, 0)) (h(0) = 0), and the same for c.
+    Only sums over k of elementwise terms remain: no (..., n, m) weight tensor and no boolean mask.
+    """
+
+    @staticmethod
+    def forward(ctx, current: th.Tensor, target: th.Tensor, taus: th.Tensor, kappa: float) -> th.Tensor:  # type: ignore[override]
+        scale = 1.0 / (kappa * target.shape[-1])
+        shape = (*current.shape, target.shape[-1])
+        delta, clamped, negative, negative_clamped = _workspace(shape, th.result_type(current, target), current.device)
+        th.sub(target.unsqueeze(-2), current.unsqueeze(-1), out=delta)  # (..., n, m)
+        th.clamp(delta, -kappa, kappa, out=clamped)
+        th.clamp(delta, max=0.0, out=negative)
+        th.clamp(clamped, max=0.0, out=negative_clamped)
+        taus = taus.to(delta.dtype)
+        tails = 1.0 - 2.0 * taus
+        # d loss_j / d z_j = -scale * sum_k w_jk c_jk
+        grad = (taus * clamped.sum(dim=-1)).add_(tails * negative_clamped.sum(dim=-1)).mul_(-scale)
+        # huber = c * (delta - c / 2), in place: the differences are not needed any more
+        huber = delta.add_(clamped, alpha=-0.5).mul_(clamped).sum(dim=-1)
+        negative_huber = negative.add_(negative_clamped, alpha=-0.5).mul_(negative_clamped).sum(dim=-1)
+        loss = (taus * huber).add_(tails * negative_huber).sum(dim=-1).mul_(scale)  # (...)
+        ctx.save_for_backward(grad)
+        return loss
+
+    @staticmethod
+    def backward(ctx, grad_output: th.Tensor) -> tuple[th.Tensor | None, None, None, None]:  # type: ignore[override]
+        (grad,) = ctx.saved_tensors
+        return grad * grad_output.unsqueeze(-1), None, None, None
+
+
 def quantile_huber_loss(
     current_quantiles: th.Tensor,
     target_quantiles: th.Tensor,
@@ -36,6 +99,9 @@ def quantile_huber_loss(
     before its final mean; that function is not used because it always reduces to one scalar, while MADDPG needs one
     loss per agent (for per-agent logging and without one call per agent), and because sb3-contrib is not a
     dependency of this package.
+
+    The loss and its gradient are computed together in one fused pass (``_FusedQuantileHuberLoss``): the gradient
+    reaches ``current_quantiles`` only (the targets are constants), and second derivatives are not available.
 
     :param current_quantiles: the critic's quantiles, shape (..., n)
     :param target_quantiles: samples of the target distribution (treated as constants), shape (..., m)
@@ -53,14 +119,7 @@ def quantile_huber_loss(
     n_quantiles = current_quantiles.shape[-1]
     if taus is None:
         taus = quantile_midpoints(n_quantiles, device=current_quantiles.device)
-    # delta: (..., n, m), delta[..., j, k] = t_k - z_j
-    delta = target_quantiles.detach().unsqueeze(-2) - current_quantiles.unsqueeze(-1)
-    abs_delta = delta.abs()
-    huber = th.where(abs_delta <= kappa, 0.5 * delta**2, kappa * (abs_delta - 0.5 * kappa))
-    # |tau_j - 1{delta < 0}|: (..., n, m); taus broadcast along the target dimension
-    weight = (taus.unsqueeze(-1) - (delta.detach() < 0).float()).abs()
-    # mean over target samples k, sum over current quantiles j: (...)
-    return (weight * huber / kappa).mean(dim=-1).sum(dim=-1)
+    return _FusedQuantileHuberLoss.apply(current_quantiles, target_quantiles.detach(), taus.detach(), float(kappa))
 
 
 def cvar_n_lowest(n_quantiles: int, alpha: float) -> int:

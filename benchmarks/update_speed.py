@@ -5,14 +5,23 @@ stored joint transition, at the report's configuration (6 agents, batch 32, 50 q
 
     python benchmarks/update_speed.py                 # CPU, and CUDA when available
     python benchmarks/update_speed.py --device cpu --threads 1 --updates 20
+    python benchmarks/update_speed.py --device cpu --threads 1 --updates 2 --image-size 32   # a quick CPU check
 
 The replay buffer is filled with random images, so only the update itself (sampling included) is timed.
+
+In the same run and on the same device, the same update is timed in a per-agent reference implementation with the
+structure of the report's code (``per_agent_reference.py``: a loop over agents, each critic with its own CNN for
+every agent's observation, N^2 CNN passes); the table gives both and the ratio reference / ours (``--no-reference``
+leaves it out). The reference reuses one random batch already on the device: its time excludes sampling, ours
+includes it.
 """
 
 import argparse
 import datetime
 import platform
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import torch as th
@@ -20,6 +29,12 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import per_agent_reference  # noqa: E402  (the sibling file, not a package)
+
+N_QUANTILES = 50
+CONFIGURATIONS = per_agent_reference.CONFIGURATIONS  # (agents, batch): (6, 32) as in the report, and (4, 256)
 
 
 class RandomImageEnv(ParallelEnv):
@@ -89,6 +104,13 @@ def main() -> None:
     parser.add_argument("--device", choices=["cpu", "cuda", "all"], default="all", help="device(s) to time")
     parser.add_argument("--threads", type=int, default=None, help="torch intra-op threads on CPU (default: torch's)")
     parser.add_argument("--updates", type=int, default=20, help="timed updates per configuration")
+    parser.add_argument("--image-size", type=int, default=80, help="image side S (images are 3 x S x S; the report's 80)")
+    parser.add_argument(
+        "--reference",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="also time the per-agent reference implementation and print the ratio reference / ours",
+    )
     args = parser.parse_args()
     if args.threads is not None:
         th.set_num_threads(args.threads)
@@ -98,25 +120,42 @@ def main() -> None:
         print("CUDA not available: CUDA not measured")
         devices.remove("cuda")
 
+    size = args.image_size
+    image = f"3x{size}x{size}"
     cpu = platform.processor() or platform.machine()
     print(f"date: {datetime.date.today().isoformat()}, machine: {platform.node()} ({cpu}), torch {th.__version__}")
-    print(f"CPU threads: {th.get_num_threads()}")
+    print(f"CPU threads: {th.get_num_threads()}, timed updates per configuration: {args.updates}")
     if th.cuda.is_available():
         print(f"GPU: {th.cuda.get_device_name(0)}")
+    if args.reference:
+        print("ours: sb3_maddpg's MADDPG.train (sampling included); reference: per_agent_reference.py (sampling excluded)")
     print()
-    print("| device | agents | batch | quantiles | image | ms per update |")
-    print("|---|---|---|---|---|---|")
+    if args.reference:
+        print("| device | agents | batch | quantiles | image | ours, ms/update | reference, ms/update | reference / ours |")
+        print("|---|---|---|---|---|---|---|---|")
+    else:
+        print("| device | agents | batch | quantiles | image | ms per update |")
+        print("|---|---|---|---|---|---|")
     for device in devices:
-        for n_agents, batch_size in ((6, 32), (4, 256)):
-            model = build(n_agents, batch_size, device)
+        for n_agents, batch_size in CONFIGURATIONS:
+            model = build(n_agents, batch_size, device, size=size, n_quantiles=N_QUANTILES)
             ms = ms_per_update(model, args.updates)
-            print(f"| {device} | {n_agents} | {batch_size} | 50 | 3x80x80 | {ms:.1f} |", flush=True)
+            del model
+            row = f"| {device} | {n_agents} | {batch_size} | {N_QUANTILES} | {image} | {ms:.1f} |"
+            if args.reference:
+                # As many warm-up updates as ours on CUDA; one on CPU, where a reference update at 80x80 takes seconds
+                reference_warmup = 3 if device == "cuda" else 1
+                reference_ms = per_agent_reference.ms_per_update(
+                    n_agents, batch_size, N_QUANTILES, size, device, n_updates=args.updates, warmup=reference_warmup
+                )
+                row += f" {reference_ms:.1f} | {reference_ms / ms:.1f}x |"
+            print(row, flush=True)
 
-    model = build(6, 32, "cpu")
+    model = build(6, 32, "cpu", size=size)
     assert model.replay_buffer is not None
     per_transition = model.replay_buffer.bytes_per_joint_transition()
     print()
-    print(f"bytes per stored joint transition (6 agents, 3x80x80 uint8): {per_transition:.0f} ({per_transition / 1e3:.1f} KB)")
+    print(f"bytes per stored joint transition (6 agents, {image} uint8): {per_transition:.0f} ({per_transition / 1e3:.1f} KB)")
 
 
 if __name__ == "__main__":

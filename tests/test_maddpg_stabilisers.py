@@ -211,3 +211,32 @@ def test_noise_schedule_counts_timesteps_with_any_number_of_copies(n_copies):
     np.testing.assert_allclose(sigmas, 0.1 + 0.9 * 0.99 ** (400 - n_copies + 1), rtol=1e-9)
     assert sigmas[0] < expected
     assert model.logger.name_to_value["train/noise_std"] == pytest.approx(sigmas[0])
+
+
+def test_row_batched_noise_draws_what_sb3s_row_by_row_noise_draws():
+    from stable_baselines3.common.noise import VectorizedActionNoise
+
+    from sb3_maddpg.common.noise import DecayingGaussianNoise, RowBatchedActionNoise, set_noise_timestep
+
+    base = DecayingGaussianNoise(mean=np.zeros(2), sigma=1.0, final_sigma=0.1, decay=0.9)
+    batched, row_by_row = RowBatchedActionNoise(base, 6), VectorizedActionNoise(base, 6)
+    for timestep in (0, 3, 40):
+        set_noise_timestep(batched, timestep)
+        set_noise_timestep(row_by_row, timestep)
+        np.random.seed(timestep)
+        expected = row_by_row()
+        np.random.seed(timestep)
+        drawn = batched()
+        assert drawn.shape == (6, 2) and drawn.dtype == np.float32
+        np.testing.assert_array_equal(drawn, expected)
+        assert [noise.timestep for noise in batched.noises] == [noise.timestep for noise in row_by_row.noises]
+    batched.reset([0, 1])  # SB3's per-row reset at an episode end of one copy
+
+
+def test_learn_wraps_the_noise_in_one_row_batched_noise():
+    from sb3_maddpg.common.noise import RowBatchedActionNoise
+
+    venv = make_multiagent_vec_env(TargetReachEnv, n_envs=2, seed=0, env_kwargs=dict(n_agents=3))
+    model = MADDPG("MlpPolicy", venv, learning_starts=0, batch_size=8, buffer_size=100, seed=0)
+    model.learn(10)
+    assert isinstance(model.action_noise, RowBatchedActionNoise) and model.action_noise.n_envs == 6

@@ -198,14 +198,11 @@ def test_batchnorm_eval_when_acting_train_in_updates_and_copied_to_targets():
     hook.remove()
     assert modes and all(modes)
     assert not model.actor_target.training and not model.critic_target.training
-    for online, target in (
-        (model.critic_batch_norm_stats, model.critic_batch_norm_stats_target),
-        (model.actor_batch_norm_stats, model.actor_batch_norm_stats_target),
-    ):
-        assert len(online) == len(target) == 2  # running_mean and running_var
-        for a, b in zip(online, target, strict=True):
-            assert th.equal(a, b)
-        assert not th.all(online[0] == 0)
+    online, target = model._online_batch_norm_stats, model._target_batch_norm_stats
+    assert len(online) == len(target) == 4  # running_mean and running_var of the critics' and the actors' encoders
+    for a, b in zip(online, target, strict=True):
+        assert th.equal(a, b)
+    assert not th.all(online[0] == 0) and not th.all(online[2] == 0)
 
 
 def test_train_step_changes_all_networks_and_logs_per_agent():

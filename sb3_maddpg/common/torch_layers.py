@@ -215,9 +215,17 @@ class BatchedLinear(nn.Module):
         :param x: (B, n_models, in_features)
         :return: (B, n_models, out_features)
         """
+        return self.forward_model_major(x.transpose(0, 1)).transpose(0, 1)
+
+    def forward_model_major(self, x: th.Tensor) -> th.Tensor:
+        """
+        The same layer on model-major inputs, the layout of the batched product (no transposes).
+
+        :param x: (n_models, B, in_features)
+        :return: (n_models, B, out_features)
+        """
         # (n_models, B, in) @ (n_models, in, out) + (n_models, 1, out) -> (n_models, B, out)
-        out = th.baddbmm(self.bias.unsqueeze(1), x.transpose(0, 1), self.weight)
-        return out.transpose(0, 1)
+        return th.baddbmm(self.bias.unsqueeze(1), x, self.weight)
 
     def extra_repr(self) -> str:
         return f"n_models={self.n_models}, in_features={self.in_features}, out_features={self.out_features}"
@@ -262,7 +270,14 @@ class BatchedMlp(nn.Module):
         :param x: (B, n_models, input_dim), or (B, M, input_dim) when ``n_models == 1``
         :return: (B, n_models or M, output_dim)
         """
-        if self.n_models == 1 and x.shape[1] != 1:
-            batch_size, n_slots = x.shape[:2]
-            return self.net(x.reshape(batch_size * n_slots, 1, -1)).view(batch_size, n_slots, -1)
-        return self.net(x)
+        batch_size, n_slots = x.shape[:2]
+        if self.n_models == 1 and n_slots != 1:
+            # one model for all slots: the slots join the batch, (1, B * M, input_dim)
+            return self._model_major(x.reshape(1, batch_size * n_slots, -1)).view(batch_size, n_slots, -1)
+        # The hidden activations stay model-major, (n_models, B, width): one transpose in, one out
+        return self._model_major(x.transpose(0, 1)).transpose(0, 1)
+
+    def _model_major(self, x: th.Tensor) -> th.Tensor:
+        for layer in self.net:
+            x = layer.forward_model_major(x) if isinstance(layer, BatchedLinear) else layer(x)
+        return x

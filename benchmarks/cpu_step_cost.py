@@ -1,0 +1,134 @@
+"""
+CPU seconds per VecEnv step + update of MADDPG on MPE2's ``simple_spread_v3`` (3 agents, continuous actions),
+8 environment copies, one update of batch 256 per VecEnv step, ``net_arch=[64, 64]``, with ``n_quantiles=25``
+and ``n_quantiles=1``: the CPU configuration of ``docs/benchmarks.md``.
+
+With ``--reference REV`` the same measurement also runs on the code of the git revision REV (exported to a
+temporary folder), alternating reference and current runs in one invocation, so that both see the same machine and
+the same load; the table gives the ratios. Each measurement runs in its own process, pinned to one core with one
+torch thread, and counts that process's CPU time (``time.process_time``), not wall time.
+
+    python benchmarks/cpu_step_cost.py --reference 2e98a80 --rounds 3
+    python benchmarks/cpu_step_cost.py --timesteps 100000        # the current code only, long run
+"""
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+N_COPIES = 8
+
+
+def measure(n_quantiles: int, timesteps: int, warmup: int) -> dict[str, float]:
+    """Train past ``learning_starts``, then time ``timesteps`` more timesteps; CPU ms per VecEnv step."""
+    import torch as th
+
+    th.set_num_threads(1)
+    from sb3_maddpg import MADDPG, make_multiagent_vec_env
+    from sb3_maddpg.zoo.registry import make_multiagent_env
+
+    venv = make_multiagent_vec_env(lambda: make_multiagent_env("simple_spread_v3"), n_envs=N_COPIES, seed=0)
+    model = MADDPG(
+        "MlpPolicy",
+        venv,
+        batch_size=256,
+        learning_starts=warmup // 2,
+        train_freq=1,
+        gradient_steps=1,
+        policy_kwargs=dict(n_quantiles=n_quantiles, net_arch=[64, 64]),
+        seed=0,
+    )
+    model.learn(warmup)
+    wall, cpu = time.perf_counter(), time.process_time()
+    model.learn(timesteps, reset_num_timesteps=False)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    steps = timesteps / N_COPIES
+    return {
+        "cpu_ms_per_step": cpu / steps * 1e3,
+        "wall_ms_per_step": wall / steps * 1e3,
+        "timesteps_per_cpu_s": timesteps / cpu,
+    }
+
+
+def run_child(code_dir: str, n_quantiles: int, args: argparse.Namespace, core: int | None) -> dict[str, float]:
+    """One measurement in a fresh process importing the package from ``code_dir``."""
+    command = [sys.executable, os.path.abspath(__file__), "--child", str(n_quantiles)]
+    command += ["--timesteps", str(args.timesteps), "--warmup", str(args.warmup)]
+    if core is not None:
+        command = ["taskset", "-c", str(core), *command]
+    env = dict(os.environ, PYTHONPATH=code_dir, OMP_NUM_THREADS="1")
+    out = subprocess.run(command, env=env, check=True, capture_output=True, text=True, cwd=code_dir).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def export_revision(revision: str, folder: str) -> str:
+    """The tracked files of ``revision`` in ``folder`` (git archive), for importing the reference code."""
+    archive = subprocess.run(["git", "-C", REPO, "archive", revision], check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
+    return folder
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--reference", help="git revision to measure in the same run, alternating with this code")
+    parser.add_argument("--rounds", type=int, default=3, help="measurements per code version and configuration")
+    parser.add_argument("--timesteps", type=int, default=8000, help="timed timesteps per measurement")
+    parser.add_argument("--warmup", type=int, default=1600, help="timesteps before timing (half of them random)")
+    parser.add_argument("--core", type=int, default=0, help="CPU core to pin each measurement to (-1: none)")
+    parser.add_argument("--child", type=int, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child is not None:
+        print(json.dumps(measure(args.child, args.timesteps, args.warmup)))
+        return
+
+    core = None if args.core < 0 else args.core
+    print(
+        f"date: {datetime.date.today().isoformat()}, machine: {platform.node()} ({platform.processor() or platform.machine()})"
+    )
+    print(f"simple_spread_v3, {N_COPIES} copies, batch 256, one update per VecEnv step, {args.timesteps} timed timesteps")
+    print(f"load average before: {os.getloadavg()[0]:.2f}")
+    with tempfile.TemporaryDirectory() as folder:
+        versions = {"current": REPO}
+        if args.reference:
+            versions = {f"reference {args.reference}": export_revision(args.reference, folder), **versions}
+        results: dict[tuple[str, int], list[dict[str, float]]] = {}
+        for _ in range(args.rounds):
+            for n_quantiles in (25, 1):
+                for name, code_dir in versions.items():
+                    result = run_child(code_dir, n_quantiles, args, core)
+                    results.setdefault((name, n_quantiles), []).append(result)
+                    print(
+                        f"  {name:>20s} n_quantiles={n_quantiles:2d}: {result['cpu_ms_per_step']:.2f} CPU ms/step", flush=True
+                    )
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+
+    def median(name: str, n_quantiles: int) -> float:
+        return statistics.median(r["cpu_ms_per_step"] for r in results[(name, n_quantiles)])
+
+    print()
+    print("| code | n_quantiles | CPU ms per VecEnv step (median) | timesteps per CPU second |")
+    print("|---|---:|---:|---:|")
+    for name in versions:
+        for n_quantiles in (25, 1):
+            ms = median(name, n_quantiles)
+            print(f"| {name} | {n_quantiles} | {ms:.2f} | {N_COPIES / ms * 1e3:,.0f} |")
+    print()
+    for name in versions:
+        print(f"{name}: n_quantiles=25 step / n_quantiles=1 step = {median(name, 25) / median(name, 1):.2f}")
+    if args.reference:
+        reference = next(iter(versions))
+        for n_quantiles in (25, 1):
+            speedup = median(reference, n_quantiles) / median("current", n_quantiles)
+            print(f"n_quantiles={n_quantiles}: timesteps per CPU second, current / reference = {speedup:.2f}")
+
+
+if __name__ == "__main__":
+    main()

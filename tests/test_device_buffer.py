@@ -351,3 +351,69 @@ def test_select_rows_is_where_over_rows(storage_device, dtype, shape):
     assert selected.dtype == dtype and selected.shape == a.shape
     assert th.equal(selected.view(th.uint8), expected.view(th.uint8))
     assert _select_rows(condition[:0], a[:0], b[:0]).shape == (0, *shape)
+
+
+# --- MADDPG with replay_buffer_kwargs=dict(storage_device=...) ---------------------------------------------------
+
+
+def _maddpg(tmp_path=None, **kwargs):
+    from maddpg_test_envs import TargetReachEnv
+
+    from sb3_maddpg import MADDPG, make_multiagent_vec_env
+
+    venv = make_multiagent_vec_env(TargetReachEnv, n_envs=2, seed=0, env_kwargs=dict(n_agents=2))
+    return MADDPG("MlpPolicy", venv, buffer_size=200, learning_starts=10, batch_size=8, seed=0, device="cpu", **kwargs)
+
+
+def test_maddpg_picks_the_device_buffer_and_learns_with_it():
+    model = _maddpg(replay_buffer_kwargs=dict(storage_device="cpu"))
+    assert isinstance(model.replay_buffer, DeviceReplayBuffer)
+    before = [p.detach().clone() for p in model.critic.parameters()]
+    model.learn(60)
+    assert model.replay_buffer.size() == 30  # 60 timesteps over 2 copies
+    assert any(not th.equal(a, b) for a, b in zip(before, model.critic.parameters(), strict=True))
+
+
+def test_maddpg_replay_buffer_files_move_between_the_two_storages(tmp_path):
+    device_model = _maddpg(replay_buffer_kwargs=dict(storage_device="cpu"))
+    device_model.learn(40)
+    device_model.save_replay_buffer(tmp_path / "device.pkl")
+    numpy_model = _maddpg()
+    numpy_model.load_replay_buffer(tmp_path / "device.pkl")
+    assert type(numpy_model.replay_buffer) is MultiAgentReplayBuffer
+    assert numpy_model.replay_buffer.size() == device_model.replay_buffer.size()
+    numpy_model.save_replay_buffer(tmp_path / "numpy.pkl")
+    again = _maddpg(replay_buffer_kwargs=dict(storage_device="cpu"))
+    again.load_replay_buffer(tmp_path / "numpy.pkl")
+    assert isinstance(again.replay_buffer, DeviceReplayBuffer)
+    slots, copies = device_model.replay_buffer.stored_transitions()
+    expected = device_model.replay_buffer._get_samples(slots, copy_inds=copies)
+    for a, b in zip(expected, again.replay_buffer._get_samples(slots, copy_inds=copies), strict=True):
+        assert th.equal(a, b)
+    again.learn(20, reset_num_timesteps=False)
+
+
+def test_maddpg_refuses_a_storage_device_it_cannot_use():
+    with pytest.raises(ValueError, match="needs the DeviceReplayBuffer"):
+        _maddpg(replay_buffer_class=MultiAgentReplayBuffer, replay_buffer_kwargs=dict(storage_device="cpu"))
+    with pytest.raises(ValueError, match="storage_device must be"):
+        _maddpg(replay_buffer_kwargs=dict(storage_device="not a device"))
+    if not th.cuda.is_available():
+        with pytest.raises(ValueError, match="CUDA is not available"):
+            _maddpg(replay_buffer_kwargs=dict(storage_device="cuda"))
+    else:
+        with pytest.raises(ValueError, match="must be the model's device"):
+            _maddpg(replay_buffer_kwargs=dict(storage_device="cuda"))
+
+
+def test_maddpg_device_buffer_refuses_vec_normalize():
+    from maddpg_test_envs import TargetReachEnv
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from sb3_maddpg import MADDPG, make_multiagent_vec_env
+
+    venv = VecNormalize(make_multiagent_vec_env(TargetReachEnv, n_envs=1, seed=0, env_kwargs=dict(n_agents=2)))
+    venv.n_agents = 2
+    model = MADDPG("MlpPolicy", venv, buffer_size=100, replay_buffer_kwargs=dict(storage_device="cpu"), device="cpu")
+    with pytest.raises(ValueError, match="VecNormalize"):
+        model.learn(10)

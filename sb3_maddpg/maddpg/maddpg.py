@@ -32,6 +32,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
+from sb3_maddpg.common.device_buffer import DeviceReplayBuffer, resolve_storage_device
 from sb3_maddpg.common.distributional import cvar, quantile_huber_loss
 from sb3_maddpg.common.model_files import READ_ERRORS, read_maddpg_data
 from sb3_maddpg.common.noise import DecayingGaussianNoise, RowBatchedActionNoise, current_noise_std, set_noise_timestep
@@ -289,6 +290,14 @@ class MADDPG(OffPolicyAlgorithm):
         self.target_policy_noise = float(target_policy_noise)
         self.target_noise_clip = float(target_noise_clip)
         self.share_actor = share_actor
+        storage = self.replay_buffer_kwargs.get("storage_device")
+        if storage is not None and not (isinstance(storage, str) and storage == "auto"):
+            storage = resolve_storage_device(storage)  # a clear error when torch cannot use it here
+            if storage.type != self.device.type:
+                raise ValueError(
+                    f"replay_buffer_kwargs' storage_device={str(storage)!r} must be the model's device ({self.device}): "
+                    "the buffer is sampled where the networks train"
+                )
         if cuda_graph and self.device.type != "cuda":
             raise ValueError(
                 f"cuda_graph=True records the update as a CUDA graph and needs device='cuda', got device={self.device!s}; "
@@ -377,7 +386,11 @@ class MADDPG(OffPolicyAlgorithm):
         self.set_random_seed(self.seed)
 
         if self.replay_buffer_class is None:
-            self.replay_buffer_class = MultiAgentReplayBuffer
+            # replay_buffer_kwargs=dict(storage_device=...) keeps the buffer on that device (DeviceReplayBuffer)
+            on_device = "storage_device" in self.replay_buffer_kwargs
+            self.replay_buffer_class = DeviceReplayBuffer if on_device else MultiAgentReplayBuffer
+        if "storage_device" in self.replay_buffer_kwargs:
+            self._check_storage_device()
         self.replay_buffer_kwargs["n_agents"] = self.n_agents
         if self.replay_buffer is None and self.env is not None:
             self._make_replay_buffer()
@@ -418,6 +431,27 @@ class MADDPG(OffPolicyAlgorithm):
             *get_parameters_by_name(self.critic_target, ["running_"]),
             *get_parameters_by_name(self.actor_target, ["running_"]),
         ]
+
+    def _check_storage_device(self) -> None:
+        """
+        The device buffer is sampled where the networks train: its storage follows the model's device. A model
+        loaded onto another device (a GPU model on a CPU machine) keeps its buffer there instead, with a warning.
+        """
+        assert self.replay_buffer_class is not None
+        if not issubclass(self.replay_buffer_class, DeviceReplayBuffer):
+            raise ValueError(
+                "replay_buffer_kwargs' storage_device needs the DeviceReplayBuffer (the default when it is given), "
+                f"got replay_buffer_class={self.replay_buffer_class.__name__}"
+            )
+        storage = self.replay_buffer_kwargs["storage_device"]
+        if isinstance(storage, str) and storage == "auto":
+            storage = self.device
+        if th.device(storage).type != self.device.type:
+            warnings.warn(
+                f"the replay buffer's storage_device {storage} is not this model's device: it is kept on {self.device}"
+            )
+            storage = self.device
+        self.replay_buffer_kwargs["storage_device"] = storage
 
     def _make_replay_buffer(self) -> None:
         assert self.replay_buffer_class is not None
@@ -745,6 +779,11 @@ class MADDPG(OffPolicyAlgorithm):
         # A model loaded without an env gets its replay buffer when it is first trained
         if self.replay_buffer is None:
             self._make_replay_buffer()
+        if isinstance(self.replay_buffer, DeviceReplayBuffer) and self._vec_normalize_env is not None:
+            raise ValueError(
+                "the device replay buffer (storage_device) does not normalise with VecNormalize; "
+                "use the default replay buffer with a VecNormalize env"
+            )
         # A saved per-row noise does not fit an env with another number of rows (load(path, env) with more copies)
         if isinstance(self.action_noise, VectorizedActionNoise) and self.action_noise.n_envs != self.env.num_envs:
             self.action_noise = RowBatchedActionNoise(self.action_noise.noises[0], self.env.num_envs)
@@ -893,11 +932,12 @@ class MADDPG(OffPolicyAlgorithm):
         assert self.n_agents is not None
         obs_shape, obs_dtype = tuple(self.observation_space.shape), self.observation_space.dtype  # type: ignore[arg-type]
         action_dim = get_action_dim(self.action_space)
-        found = (buffer.n_agents, tuple(buffer.obs_shape), buffer.observations.dtype, buffer.action_dim)
+        buffer_dtype = np.dtype(buffer.observation_space.dtype)  # type: ignore[arg-type]
+        found = (buffer.n_agents, tuple(buffer.obs_shape), buffer_dtype, buffer.action_dim)
         if found != (self.n_agents, obs_shape, obs_dtype, action_dim):
             raise ValueError(
                 f"the replay buffer {name} holds joint transitions of {buffer.n_agents} agents with observations "
-                f"{tuple(buffer.obs_shape)} {buffer.observations.dtype} and actions ({buffer.action_dim},), but this "
+                f"{tuple(buffer.obs_shape)} {buffer_dtype} and actions ({buffer.action_dim},), but this "
                 f"model has {self.n_agents} agents with observations {obs_shape} {obs_dtype} and actions ({action_dim},); "
                 "load a buffer saved with the same env configuration"
             )
@@ -906,6 +946,15 @@ class MADDPG(OffPolicyAlgorithm):
             if self.verbose >= 1:
                 print(f"Laying the replay buffer out again: {buffer.n_copies} environment copies -> {n_copies}")
             buffer = buffer.with_copies(n_copies, self.buffer_size)
+        # Storage where this model keeps its buffer: on its device (storage_device) or in host memory
+        assert self.replay_buffer_class is not None
+        if issubclass(self.replay_buffer_class, DeviceReplayBuffer):
+            storage = self.replay_buffer_kwargs.get("storage_device", self.device)
+            if not isinstance(buffer, DeviceReplayBuffer) or buffer.storage_device != storage:
+                plain = buffer.to_numpy_buffer() if isinstance(buffer, DeviceReplayBuffer) else buffer
+                buffer = DeviceReplayBuffer.from_buffer(plain, storage_device=storage, device=self.device)
+        elif isinstance(buffer, DeviceReplayBuffer):
+            buffer = buffer.to_numpy_buffer()
         return buffer
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:

@@ -301,11 +301,19 @@ class MADDPGPolicy(BasePolicy):
 
         :param mode: True for training mode
         """
-        # Called before every VecEnv step and every update: walking the module trees only when the mode changes
+        # Called before every VecEnv step and every update, so the mode flips twice per step: setting the flag of a
+        # flat list of modules costs a fraction of nn.Module.train's recursive walk. Modules with their own train()
+        # are still called.
         if mode == self.training and self.actor.training == mode and self.critic.training == mode:
             return
-        self.actor.train(mode)
-        self.critic.train(mode)
+        cached = getattr(self, "_mode_modules", None)
+        if cached is None or cached[0] is not self.actor or cached[1] is not self.critic:
+            cached = self._mode_modules = (self.actor, self.critic, [*self.actor.modules(), *self.critic.modules()])
+        for module in cached[2]:
+            if type(module).train is nn.Module.train:
+                module.training = mode
+            else:
+                module.train(mode)
         self.training = mode
 
 

@@ -29,6 +29,8 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
+from sb3_maddpg.common.device_buffer import DeviceReplayBuffer
+from sb3_maddpg.maddpg.graphed_update import GraphedUpdate
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import per_agent_reference  # noqa: E402  (the sibling file, not a package)
@@ -66,7 +68,33 @@ class RandomImageEnv(ParallelEnv):
         return obs, dict.fromkeys(obs, 0.0), dict.fromkeys(obs, False), dict.fromkeys(obs, False), {a: {} for a in obs}
 
 
-def build(n_agents: int, batch_size: int, device: str, size: int = 80, n_quantiles: int = 50) -> MADDPG:
+# What is timed: (label, MADDPG keyword arguments, replay buffer on the model's device)
+VARIANTS = {
+    "eager": ({}, False),
+    "eager+device-buffer": ({}, True),
+    "graph": (dict(cuda_graph=True), True),
+    "graph+bf16": (dict(cuda_graph=True, bf16_autocast=True), True),
+    "bf16": (dict(bf16_autocast=True), False),
+}
+
+
+def build(
+    n_agents: int,
+    batch_size: int,
+    device: str,
+    size: int = 80,
+    n_quantiles: int = 50,
+    variant: str = "eager",
+) -> MADDPG:
+    """
+    A model at the given configuration with a full replay buffer of random images. On a device without CUDA the
+    graph variants run the graph's code path without recording it (``GraphedUpdate(capture=False)``).
+    """
+    algo_kwargs, device_buffer = VARIANTS[variant]
+    algo_kwargs = dict(algo_kwargs)
+    record_graph = algo_kwargs.get("cuda_graph", False) and device == "cuda"
+    if not record_graph:
+        algo_kwargs.pop("cuda_graph", None)
     venv = make_multiagent_vec_env(RandomImageEnv, n_envs=1, seed=0, env_kwargs=dict(n_agents=n_agents, size=size))
     model = MADDPG(
         "CnnPolicy",
@@ -76,6 +104,7 @@ def build(n_agents: int, batch_size: int, device: str, size: int = 80, n_quantil
         policy_kwargs=dict(n_quantiles=n_quantiles),
         device=device,
         seed=0,
+        **algo_kwargs,
     )
     buffer = model.replay_buffer
     assert buffer is not None
@@ -85,6 +114,10 @@ def build(n_agents: int, batch_size: int, device: str, size: int = 80, n_quantil
     buffer.rewards[...] = rng.normal(size=buffer.rewards.shape)
     buffer.dones[::50] = 1.0
     buffer.full = True
+    if device_buffer:
+        model.replay_buffer = DeviceReplayBuffer.from_buffer(buffer, storage_device=model.device, device=model.device)
+    if VARIANTS[variant][0].get("cuda_graph") and not record_graph:
+        model._graphed_update = GraphedUpdate(model, capture=False)
     model._setup_learn(total_timesteps=1)  # logger and counters, as learn() would
     return model
 
@@ -111,6 +144,12 @@ def main() -> None:
         default=True,
         help="also time the per-agent reference implementation and print the ratio reference / ours",
     )
+    parser.add_argument(
+        "--variants",
+        default="eager",
+        help=f"comma-separated, timed in this order: {', '.join(VARIANTS)} (graph variants without CUDA run the "
+        "graph's code path, not recorded)",
+    )
     args = parser.parse_args()
     if args.threads is not None:
         th.set_num_threads(args.threads)
@@ -130,26 +169,37 @@ def main() -> None:
     if args.reference:
         print("ours: sb3_maddpg's MADDPG.train (sampling included); reference: per_agent_reference.py (sampling excluded)")
     print()
-    if args.reference:
-        print("| device | agents | batch | quantiles | image | ours, ms/update | reference, ms/update | reference / ours |")
-        print("|---|---|---|---|---|---|---|---|")
-    else:
-        print("| device | agents | batch | quantiles | image | ms per update |")
-        print("|---|---|---|---|---|---|")
+    variants = args.variants.split(",")
+    unknown = [v for v in variants if v not in VARIANTS]
+    if unknown:
+        parser.error(f"unknown variants {unknown}; choose from {list(VARIANTS)}")
+    print("| device | variant | agents | batch | quantiles | image | ms per update | reference / this |")
+    print("|---|---|---|---|---|---|---|---|")
     for device in devices:
         for n_agents, batch_size in CONFIGURATIONS:
-            model = build(n_agents, batch_size, device, size=size, n_quantiles=N_QUANTILES)
-            ms = ms_per_update(model, args.updates)
-            del model
-            row = f"| {device} | {n_agents} | {batch_size} | {N_QUANTILES} | {image} | {ms:.1f} |"
+            reference_ms = None
             if args.reference:
                 # As many warm-up updates as ours on CUDA; one on CPU, where a reference update at 80x80 takes seconds
                 reference_warmup = 3 if device == "cuda" else 1
                 reference_ms = per_agent_reference.ms_per_update(
                     n_agents, batch_size, N_QUANTILES, size, device, n_updates=args.updates, warmup=reference_warmup
                 )
-                row += f" {reference_ms:.1f} | {reference_ms / ms:.1f}x |"
-            print(row, flush=True)
+                print(
+                    f"| {device} | per-agent reference | {n_agents} | {batch_size} | {N_QUANTILES} | {image} | "
+                    f"{reference_ms:.2f} | 1.0x |",
+                    flush=True,
+                )
+            for variant in variants:
+                model = build(n_agents, batch_size, device, size=size, n_quantiles=N_QUANTILES, variant=variant)
+                # graphs: 3 eager warm-up steps of each kind, then one capture, before the timed replays
+                ms = ms_per_update(model, args.updates, warmup=8 if "graph" in variant else 3)
+                del model
+                ratio = f"{reference_ms / ms:.1f}x" if reference_ms is not None else ""
+                label = variant if device == "cuda" or "graph" not in variant else f"{variant} (code path, not recorded)"
+                print(
+                    f"| {device} | {label} | {n_agents} | {batch_size} | {N_QUANTILES} | {image} | {ms:.2f} | {ratio} |",
+                    flush=True,
+                )
 
     model = build(6, 32, "cpu", size=size)
     assert model.replay_buffer is not None

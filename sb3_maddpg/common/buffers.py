@@ -254,7 +254,8 @@ class MultiAgentReplayBuffer(ReplayBuffer):
             dones.reshape(-1, 1),
             self._normalize_reward(self.rewards[batch_inds, copy_inds], env),
         )
-        return MultiAgentReplayBufferSamples(*tuple(map(self.to_torch, data)))  # type: ignore[arg-type]
+        # The arrays are fresh copies (fancy indexing), so the tensors can share their memory (SB3 copies again)
+        return MultiAgentReplayBufferSamples(*(self.to_torch(array, copy=False) for array in data))  # type: ignore[arg-type]
 
     def next_observations_of(self, batch_inds: np.ndarray, copy_inds: np.ndarray) -> np.ndarray:
         """

@@ -16,7 +16,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 device=cuda
 if [ "${1:-}" = "--device" ]; then device="${2:?--device cpu|cuda}"; fi
-py="${PYTHON:-python}"
+py="${PYTHON:-python3}"
 out="${OUT:-runs/gpu_check}"
 mkdir -p "$out"
 export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}" PYTHONUNBUFFERED=1

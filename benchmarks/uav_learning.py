@@ -61,13 +61,17 @@ class LearningCurve(BaseCallback):
         if self.num_timesteps >= self.next_eval:
             self.next_eval += self.every
             metrics = evaluate(self.model, self.env_id, self.env_kwargs, self.episodes)  # type: ignore[arg-type]
-            saturation = self.model.logger.name_to_value.get("train/actor_saturation")
+            logged = self.model.logger.name_to_value
+            names = self.model.agent_names or []
+            q_means = [logged[f"train/q_mean_{name}"] for name in names if f"train/q_mean_{name}" in logged]
             self.emit(
                 dict(
                     kind="curve",
                     timesteps=self.num_timesteps,
                     seconds=time.perf_counter() - self.start,
-                    saturation=saturation,
+                    saturation=logged.get("train/actor_saturation"),
+                    critic_loss=logged.get("train/critic_loss"),
+                    q_mean=float(np.mean(q_means)) if q_means else None,
                     **metrics,
                 )
             )

@@ -565,7 +565,8 @@ class MADDPG(OffPolicyAlgorithm):
         """The forward passes' autocast context: bfloat16 when ``bf16_autocast``, otherwise none."""
         if not self.bf16_autocast:
             return contextlib.nullcontext()
-        return th.autocast(device_type=self.device.type, dtype=th.bfloat16)
+        # No cast cache: each weight is cast once per region anyway, and a CUDA graph must not record cached casts
+        return th.autocast(device_type=self.device.type, dtype=th.bfloat16, cache_enabled=False)
 
     def _gradient_step(
         self, replay_data: MultiAgentReplayBufferSamples, update_actor: bool, update_targets: bool

@@ -140,9 +140,10 @@ class MADDPG(OffPolicyAlgorithm):
         graph on its first use and replay it afterwards: one launch per update instead of hundreds of kernel
         launches. Needs ``device="cuda"`` and a fixed batch size (another batch size is captured again); the
         optimizers become capturable. False, the default, runs the same step eagerly
-    :param bf16_autocast: run the forward passes of the update under bfloat16 autocast (convolutions and matrix
-        products in bfloat16; the losses, the quantile targets and the optimizer state stay float32). Faster on GPUs
-        with bfloat16 units, at the cost of about 3 significant digits in the activations; off by default
+    :param bf16_autocast: run the forward passes of the update under bfloat16 autocast: convolutions and matrix
+        products in bfloat16 (about 3 significant digits), while the quantile loss and the CVaR are computed in
+        float32 from the networks' outputs, and the parameters and the optimizer state stay float32. Faster on GPUs
+        with bfloat16 units; off by default
     :param n_agents: number of agents; read from the env's ``n_agents`` attribute when None
     :param stats_window_size: window size of the rollout logging (episodes)
     :param tensorboard_log: the log location for TensorBoard (if None, no logging)
@@ -553,8 +554,7 @@ class MADDPG(OffPolicyAlgorithm):
         own = th.eye(n_agents, dtype=th.bool, device=policy_actions.device).view(1, n_agents, n_agents, 1)
         mixed = th.where(own, policy_actions.unsqueeze(1), replay_data.actions.unsqueeze(1))  # (B, N, N, A)
         quantiles = self.critic.quantiles_from_features(features, mixed)  # (B, N, n_q)
-        regularisation = preactivations.pow(2).mean(dim=(0, 2))  # (N,)
-        regularisation = regularisation.float()
+        regularisation = preactivations.float().pow(2).mean(dim=(0, 2))  # (N,)
         return -cvar(quantiles.float(), self.cvar_alpha).mean(dim=0) + self.actor_reg * regularisation
 
     def _clip_gradients(self, module: th.nn.Module) -> None:

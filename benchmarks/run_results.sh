@@ -10,7 +10,8 @@ out="${OUT:-runs/results}"
 timesteps="${TIMESTEPS:-16000}"
 mkdir -p "$out"
 
-# The hyperparameters of zoo_configs/maddpg.yml's uav_coverage_cpu_v1 entry.
+# The hyperparameters of zoo_configs/maddpg.yml's uav_coverage_cpu_v1 entry when the table was measured (the entry has
+# batch_norm_eps=1e-3 in its encoder since: benchmarks/run_stability.sh has the runs with it).
 v1_algo='"learning_starts": 2000, "train_freq": 1, "gamma": 0.95, "tau": 0.01, "learning_rate": 0.001,
   "actor_learning_rate": 0.0001, "critic_warmup_steps": 2000, "policy_delay": 2, "target_policy_noise": 0.2,
   "actor_reg": 0.001, "buffer_size": 100000, "batch_size": 64'

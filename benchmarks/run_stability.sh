@@ -18,4 +18,4 @@ encoder='"padding": 1, "coord_channels": true'
 taskset -c "$core" "$py" benchmarks/uav_learning.py --env uav_coverage_cpu_v1 --env-kwargs '{"max_cycles": 300}' \
   --algo-kwargs "{$v1_algo}" --policy-kwargs "{\"n_quantiles\": 25, \"features_extractor_kwargs\": {$encoder}}" \
   --timesteps "${TIMESTEPS:-32000}" --eval-every 4000 --seed "$seed" --save "$out/${name}_s${seed}.zip" \
-  --out "$out/${name}_s${seed}.jsonl" > "$out/${name}_s${seed}.log" 2>&1
+  --out "$out/${name}_s${seed}.jsonl" --tensorboard-log "$out/tb_${name}_s${seed}" > "$out/${name}_s${seed}.log" 2>&1

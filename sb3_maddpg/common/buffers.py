@@ -85,22 +85,16 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         handle_timeout_termination: bool = True,
         n_agents: int = 1,
     ) -> None:
-        if not isinstance(observation_space, spaces.Box):
-            raise TypeError(f"MultiAgentReplayBuffer accepts a Box observation space, got {observation_space}")
-        if not isinstance(action_space, spaces.Box):
-            raise TypeError(f"MultiAgentReplayBuffer accepts a Box action space, got {action_space}")
-        if n_agents < 1 or n_envs % n_agents != 0:
-            raise ValueError(
-                f"n_envs (VecEnv rows) must be a positive multiple of n_agents >= 1, got n_envs={n_envs}, n_agents={n_agents}"
-            )
-        # Skip ReplayBuffer.__init__: it would allocate SB3's per-row arrays (with next observations)
-        BaseBuffer.__init__(self, buffer_size, observation_space, action_space, device, n_envs=n_envs)
-        self.n_agents = n_agents
-        self.n_copies = n_envs // n_agents
-        self.buffer_size = max(buffer_size // self.n_copies, 1)
-        self.optimize_memory_usage = optimize_memory_usage
-        self.handle_timeout_termination = handle_timeout_termination
-
+        self._set_layout(
+            buffer_size,
+            observation_space,
+            action_space,
+            device,
+            n_envs,
+            optimize_memory_usage,
+            handle_timeout_termination,
+            n_agents,
+        )
         slots, copies, agents = self.buffer_size, self.n_copies, self.n_agents
         obs_dtype = observation_space.dtype
         self.observations = np.zeros((slots, copies, agents, *self.obs_shape), dtype=obs_dtype)
@@ -124,6 +118,35 @@ class MultiAgentReplayBuffer(ReplayBuffer):
                     "This system does not have apparently enough memory to store the complete "
                     f"replay buffer {total / 1e9:.2f}GB > {available / 1e9:.2f}GB"
                 )
+
+    def _set_layout(
+        self,
+        buffer_size: int,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        device: th.device | str,
+        n_envs: int,
+        optimize_memory_usage: bool,
+        handle_timeout_termination: bool,
+        n_agents: int,
+    ) -> None:
+        """Check the spaces and the team, and set the attributes every joint buffer has (parameters as in ``__init__``)."""
+        name = type(self).__name__
+        if not isinstance(observation_space, spaces.Box):
+            raise TypeError(f"{name} accepts a Box observation space, got {observation_space}")
+        if not isinstance(action_space, spaces.Box):
+            raise TypeError(f"{name} accepts a Box action space, got {action_space}")
+        if n_agents < 1 or n_envs % n_agents != 0:
+            raise ValueError(
+                f"n_envs (VecEnv rows) must be a positive multiple of n_agents >= 1, got n_envs={n_envs}, n_agents={n_agents}"
+            )
+        # Skip ReplayBuffer.__init__: it would allocate SB3's per-row arrays (with next observations)
+        BaseBuffer.__init__(self, buffer_size, observation_space, action_space, device, n_envs=n_envs)
+        self.n_agents = n_agents
+        self.n_copies = n_envs // n_agents
+        self.buffer_size = max(buffer_size // self.n_copies, 1)
+        self.optimize_memory_usage = optimize_memory_usage
+        self.handle_timeout_termination = handle_timeout_termination
 
     def nbytes_per_slot(self) -> int:
         """Bytes of the preallocated arrays per slot (one slot holds ``n_copies`` joint transitions)."""

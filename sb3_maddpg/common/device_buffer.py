@@ -164,22 +164,18 @@ class DeviceReplayBuffer(MultiAgentReplayBuffer):
         n_agents: int = 1,
         storage_device: th.device | str = "cuda",
     ) -> None:
-        if not isinstance(observation_space, spaces.Box):
-            raise TypeError(f"DeviceReplayBuffer accepts a Box observation space, got {observation_space}")
-        if not isinstance(action_space, spaces.Box):
-            raise TypeError(f"DeviceReplayBuffer accepts a Box action space, got {action_space}")
-        if n_agents < 1 or n_envs % n_agents != 0:
-            raise ValueError(
-                f"n_envs (VecEnv rows) must be a positive multiple of n_agents >= 1, got n_envs={n_envs}, n_agents={n_agents}"
-            )
-        self.storage_device = resolve_storage_device(storage_device)
         # Not MultiAgentReplayBuffer.__init__: it would allocate the numpy arrays (and warn about host memory)
-        BaseBuffer.__init__(self, buffer_size, observation_space, action_space, device, n_envs=n_envs)
-        self.n_agents = n_agents
-        self.n_copies = n_envs // n_agents
-        self.buffer_size = max(buffer_size // self.n_copies, 1)
-        self.optimize_memory_usage = optimize_memory_usage
-        self.handle_timeout_termination = handle_timeout_termination
+        self._set_layout(
+            buffer_size,
+            observation_space,
+            action_space,
+            device,
+            n_envs,
+            optimize_memory_usage,
+            handle_timeout_termination,
+            n_agents,
+        )
+        self.storage_device = resolve_storage_device(storage_device)
         self._obs_np_dtype = np.dtype(observation_space.dtype)
         self._action_np_dtype = np.dtype(self._maybe_cast_dtype(action_space.dtype))
         self._check_memory()

@@ -119,6 +119,33 @@ def test_actor_loss_of_agent_i_moves_only_actor_i(policy):
         assert actor_loss[0].item() == pytest.approx(-cvar(z0, 0.4).mean().item(), abs=1e-6)
 
 
+@pytest.mark.parametrize("n_agents", [1, 2, 3])
+def test_own_action_critic_path_equals_the_mixed_joint_actions(n_agents):
+    # The actor update's critic pass (the shared first layer plus each agent's own-action change) against the
+    # explicit form: one joint action per critic, built with th.where and fed through the whole MLP
+    model = make_model("MlpPolicy", n_agents=n_agents)
+    batch = hand_batch(model)
+    features = model.critic.encode(batch.observations).detach()
+    own = th.tanh(th.randn(batch.actions.shape, generator=th.Generator().manual_seed(3))).requires_grad_(True)
+    fast = model.critic.quantiles_with_own_actions(features, batch.actions, own)
+    eye = th.eye(n_agents, dtype=th.bool).view(1, n_agents, n_agents, 1)
+    mixed = th.where(eye, own.unsqueeze(1), batch.actions.unsqueeze(1))  # (B, N_critics, N, A)
+    slow = model.critic.quantiles_from_features(features, mixed)
+    th.testing.assert_close(fast, slow, rtol=1e-5, atol=1e-6)
+    weights = th.randn(fast.shape, generator=th.Generator().manual_seed(4))
+    (grad_fast,) = th.autograd.grad((fast * weights).sum(), own)
+    (grad_slow,) = th.autograd.grad((slow * weights).sum(), own)
+    th.testing.assert_close(grad_fast, grad_slow, rtol=1e-5, atol=1e-6)
+    # the shared-input path for one joint action equals the per-critic path with that action repeated
+    repeated = batch.actions.unsqueeze(1).expand(-1, n_agents, -1, -1)
+    th.testing.assert_close(
+        model.critic.quantiles_from_features(features, batch.actions),
+        model.critic.quantiles_from_features(features, repeated),
+        rtol=1e-5,
+        atol=1e-6,
+    )
+
+
 def test_each_critic_sees_every_agents_observation_and_action():
     model = make_model("MlpPolicy", n_agents=3)
     model.policy.set_training_mode(False)
@@ -254,3 +281,24 @@ def test_batch_norm_eps_must_be_positive(eps):
 
     with pytest.raises(ValueError, match="batch_norm_eps must be a number > 0"):
         ReportCNN(spaces.Box(0, 255, (3, 16, 16), np.uint8), batch_norm_eps=eps)
+
+
+@pytest.mark.parametrize("policy", ["MlpPolicy", "CnnPolicy"])
+def test_sampled_actions_equal_sb3s_predict_path(policy):
+    # MADDPG takes the actors' [-1, 1] outputs as they are; SB3's _sample_action maps them to the action space's
+    # bounds through predict and back. Both must give the same env and buffer actions, with the same noise.
+    from stable_baselines3.common.noise import NormalActionNoise
+    from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+
+    model = make_model(policy, n_agents=2)
+    model.learn(4)  # sets _last_obs; the CountingImageEnv actions lie in [0, 1], not [-1, 1]
+    noises = [NormalActionNoise(np.zeros(2), np.full(2, 0.3)) for _ in range(2)]
+    np.random.seed(5)
+    ours = model._sample_action(0, noises[0], model.env.num_envs)
+    np.random.seed(5)
+    theirs = OffPolicyAlgorithm._sample_action(model, 0, noises[1], model.env.num_envs)
+    for mine, reference in zip(ours, theirs, strict=True):
+        assert mine.shape == reference.shape
+        np.testing.assert_allclose(mine, reference, rtol=0, atol=1e-6)
+    if policy == "CnnPolicy":  # env actions in the env's bounds [0, 1], buffer actions in [-1, 1]
+        assert not np.allclose(ours[0], ours[1])

@@ -278,6 +278,17 @@ class BatchedMlp(nn.Module):
         return self._model_major(x.transpose(0, 1)).transpose(0, 1)
 
     def _model_major(self, x: th.Tensor) -> th.Tensor:
-        for layer in self.net:
+        return self.model_major_from(x, start=0)
+
+    def model_major_from(self, x: th.Tensor, start: int) -> th.Tensor:
+        """
+        The layers ``net[start:]`` on model-major inputs (a caller that computes the first layer its own way
+        continues here with ``start=1``).
+
+        :param x: (n_models, B, width) input of layer ``start``
+        :param start: index of the first layer to apply
+        :return: (n_models, B, output_dim)
+        """
+        for layer in self.net[start:]:
             x = layer.forward_model_major(x) if isinstance(layer, BatchedLinear) else layer(x)
         return x

@@ -549,11 +549,8 @@ class MADDPG(OffPolicyAlgorithm):
         if preactivations is None:
             preactivations = self.actor.preactivations(replay_data.observations)  # (B, N, A)
         policy_actions = th.tanh(preactivations)
-        n_agents = policy_actions.shape[1]
-        # mixed[b, i, j] = mu_j(o_j) if i == j else a_j from the batch: the joint action critic i scores
-        own = th.eye(n_agents, dtype=th.bool, device=policy_actions.device).view(1, n_agents, n_agents, 1)
-        mixed = th.where(own, policy_actions.unsqueeze(1), replay_data.actions.unsqueeze(1))  # (B, N, N, A)
-        quantiles = self.critic.quantiles_from_features(features, mixed)  # (B, N, n_q)
+        # Critic i scores the batch's joint action with a_i = mu_i(o_i) in place of the batch's a_i
+        quantiles = self.critic.quantiles_with_own_actions(features, replay_data.actions, policy_actions)  # (B, N, n_q)
         regularisation = preactivations.float().pow(2).mean(dim=(0, 2))  # (N,)
         return -cvar(quantiles.float(), self.cvar_alpha).mean(dim=0) + self.actor_reg * regularisation
 
@@ -671,6 +668,30 @@ class MADDPG(OffPolicyAlgorithm):
         noise_std = current_noise_std(self.action_noise)
         if noise_std is not None:
             self.logger.record("train/noise_std", noise_std)
+
+    def _sample_action(
+        self, learning_starts: int, action_noise: ActionNoise | None = None, n_envs: int = 1
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        As ``OffPolicyAlgorithm._sample_action`` (random actions before ``learning_starts``, then the actors plus
+        the exploration noise, clipped to [-1, 1]), with the actors' [-1, 1] outputs used as they are: SB3 goes
+        through ``predict``, which maps them to the action space's bounds, and maps them back at once.
+
+        :param learning_starts: timesteps of random actions before learning starts
+        :param action_noise: exploration noise added to the actors' outputs
+        :param n_envs: number of VecEnv rows
+        :return: the actions to take in the env and the [-1, 1] actions to store in the replay buffer
+        """
+        if self.num_timesteps < learning_starts or not isinstance(self.action_space, spaces.Box):
+            return super()._sample_action(learning_starts, action_noise, n_envs)
+        assert self._last_obs is not None, "self._last_obs was not set"
+        self.policy.set_training_mode(False)
+        observations, _ = self.policy.obs_to_tensor(self._last_obs)
+        with th.no_grad():
+            scaled_action = self.policy._predict(observations).cpu().numpy().reshape((-1, *self.action_space.shape))
+        if action_noise is not None:
+            scaled_action = np.clip(scaled_action + action_noise(), -1, 1)
+        return self.policy.unscale_action(scaled_action), scaled_action
 
     def collect_rollouts(
         self,

@@ -127,11 +127,54 @@ class MultiAgentQuantileCritic(nn.Module):
         """
         batch_size, n_agents = features.shape[:2]
         if actions.dim() == 3:
-            actions = actions.unsqueeze(1).expand(batch_size, n_agents, n_agents, actions.shape[-1])
+            # Every critic reads the same input: one (B, N*F + N*A) tensor, broadcast to the critics without a copy
+            return self._quantiles_from_hidden(self._first_layer(self._joint_input(features, actions)))
         joint_features = features.flatten(1).unsqueeze(1).expand(batch_size, n_agents, -1)
         # (B, N_critics, N*F + N*A)
         critic_inputs = th.cat([joint_features, actions.flatten(2)], dim=2)
         return self.quantile_nets(critic_inputs)
+
+    def quantiles_with_own_actions(
+        self, features: th.Tensor, actions: th.Tensor, own_actions: th.Tensor, joint_input: th.Tensor | None = None
+    ) -> th.Tensor:
+        """
+        The quantiles that the actor update needs: critic i scores the joint action ``actions`` with agent i's own
+        action replaced by ``own_actions[:, i]``.
+
+        Equal to ``quantiles_from_features`` on the N mixed joint actions, without building them: the first layer
+        is linear, so critic i's first pre-activation is that of the shared input plus agent i's action change
+        times the rows of critic i's weight that read agent i's action.
+
+        :param features: (B, N, F) from ``encode``
+        :param actions: the joint actions of the batch, (B, N, A)
+        :param own_actions: the actions that replace each agent's own, (B, N, A)
+        :param joint_input: ``_joint_input(features, actions)`` if already built
+        :return: quantiles (B, N, n_quantiles), ``[:, i]`` from critic i
+        """
+        if joint_input is None:
+            joint_input = self._joint_input(features, actions)
+        first = self.quantile_nets.net[0]
+        n_agents, action_dim = actions.shape[1], actions.shape[2]
+        n_feature_rows = first.in_features - n_agents * action_dim
+        # own_rows[i] = the rows of critic i's first weight that read agent i's action, (N, A, width); a strided view
+        action_rows = first.weight[:, n_feature_rows:].view(n_agents, n_agents, action_dim, -1)
+        own_rows = th.diagonal(action_rows, dim1=0, dim2=1).permute(2, 0, 1)
+        change = (own_actions - actions).transpose(0, 1)  # (N, B, A)
+        return self._quantiles_from_hidden(th.baddbmm(self._first_layer(joint_input), change, own_rows))
+
+    @staticmethod
+    def _joint_input(features: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        """(B, N*F + N*A): every agent's features, then every agent's action."""
+        return th.cat([features.flatten(1), actions.flatten(1)], dim=1)
+
+    def _first_layer(self, joint_input: th.Tensor) -> th.Tensor:
+        """The critics' first linear layer on one shared input (B, D): (N, B, width), model-major."""
+        first = self.quantile_nets.net[0]
+        return first.forward_model_major(joint_input.unsqueeze(0).expand(first.n_models, -1, -1))
+
+    def _quantiles_from_hidden(self, hidden: th.Tensor) -> th.Tensor:
+        """The layers after the first linear one, on its model-major output: (B, N, n_quantiles)."""
+        return self.quantile_nets.model_major_from(hidden, start=1).transpose(0, 1)
 
     def forward(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
         """

@@ -3,6 +3,7 @@
 # with one change at a time, on one core each.
 #   bash benchmarks/run_stability.sh NAME SEED CORE 'ALGO_JSON_EXTRA' 'ENCODER_JSON_EXTRA'
 # e.g. bash benchmarks/run_stability.sh bn_eps 0 0 '' '"batch_norm_eps": 0.001'
+# ENV_EXTRA adds env parameters (e.g. ENV_EXTRA='"action_mode": "waypoint"'), TIMESTEPS sets the budget.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 py="${PYTHON:-.venv/bin/python}"
@@ -15,7 +16,9 @@ v1_algo='"learning_starts": 2000, "train_freq": 1, "gamma": 0.95, "tau": 0.01, "
 encoder='"padding": 1, "coord_channels": true'
 [ -n "$algo_extra" ] && v1_algo="$v1_algo, $algo_extra"
 [ -n "$encoder_extra" ] && encoder="$encoder, $encoder_extra"
-taskset -c "$core" "$py" benchmarks/uav_learning.py --env uav_coverage_cpu_v1 --env-kwargs '{"max_cycles": 300}' \
+env_kwargs='"max_cycles": 300'
+[ -n "${ENV_EXTRA:-}" ] && env_kwargs="$env_kwargs, $ENV_EXTRA"
+taskset -c "$core" "$py" benchmarks/uav_learning.py --env uav_coverage_cpu_v1 --env-kwargs "{$env_kwargs}" \
   --algo-kwargs "{$v1_algo}" --policy-kwargs "{\"n_quantiles\": 25, \"features_extractor_kwargs\": {$encoder}}" \
   --timesteps "${TIMESTEPS:-32000}" --eval-every 4000 --seed "$seed" --save "$out/${name}_s${seed}.zip" \
   --out "$out/${name}_s${seed}.jsonl" --tensorboard-log "$out/tb_${name}_s${seed}" > "$out/${name}_s${seed}.log" 2>&1

@@ -32,6 +32,30 @@ def test_cartesian_actions_move_by_2a_minus_1_times_lmax():
     np.testing.assert_allclose(core.last_energy_spent, [0.5, 1.0])
 
 
+def test_waypoint_actions_fly_toward_the_point_a_times_l():
+    core = scenario(action_mode="waypoint", wall_mode="clip")
+    # L = 4. U0 at (0.5, 0.5), a = (0.125, 0.875): waypoint (0.5, 3.5), 3 away: one step of l_max = 1 -> (0.5, 1.5),
+    # rho 1. U1 at (2.5, 2.5), a = (0.75, 0.625): waypoint (3, 2.5), 0.5 away: reached, rho 0.5
+    core.step(np.array([[0.125, 0.875], [0.75, 0.625]]))
+    np.testing.assert_allclose(core.positions, [[0.5, 1.5], [3.0, 2.5]], atol=1e-12)
+    # e = eta l + E_h (1 - rho): 1 * 1 + 0 = 1.0 and 1 * 0.5 + 0.5 * 0.5 = 0.75
+    np.testing.assert_allclose(core.last_energy_spent, [1.0, 0.75])
+    # the same waypoint again: U1 is there and hovers (e = E_h)
+    core.step(np.array([[0.125, 0.875], [0.75, 0.625]]))
+    np.testing.assert_allclose(core.positions, [[0.5, 2.5], [3.0, 2.5]], atol=1e-12)
+    np.testing.assert_allclose(core.last_energy_spent, [1.0, 0.5])
+
+
+def test_waypoint_actions_never_hit_a_wall():
+    # a = 1 is the far edge: the waypoint is kept just inside [0, L), so even the corners are reached without a hit
+    core = scenario(action_mode="waypoint", wall_mode="refuse", start=[[3.5, 3.5], [0.5, 0.5]])
+    for _ in range(5):
+        core.step(np.array([[1.0, 1.0], [0.0, 0.0]]))
+        assert not core.last_wall_hit.any()
+    np.testing.assert_allclose(core.positions, [[4.0, 4.0], [0.0, 0.0]], atol=1e-9)
+    assert (core.positions < core.map_size).all()
+
+
 def test_clipped_wall_stops_at_the_boundary_and_charges_the_overshoot():
     core = scenario(start=[[0.5, 0.5], [2.5, 3.5]])
     # U1 asks for (2.5, 4.5): it stops at y just below 4 (flown 0.5, overshoot 0.5); U0 asks for (0.5, -0.5):
@@ -173,3 +197,15 @@ def test_fly_to_in_cartesian_encoding_reaches_the_target():
         core.step(fly_to(core.positions, targets, core.max_distance, action_mode="cartesian"))
     np.testing.assert_allclose(core.positions, targets, atol=1e-6)
     np.testing.assert_allclose(core.last_energy_spent, [core.hover_energy, core.hover_energy], atol=1e-6)
+
+
+def test_fly_to_in_waypoint_encoding_reaches_the_target_and_hovers():
+    core = UAVCoverageCore(map_size=8, n_uavs=2, obs_size=8, start=[[1.0, 1.0], [6.0, 6.0]], action_mode="waypoint")
+    core.reset(seed=0)
+    targets = np.array([[5.0, 4.0], [6.0, 6.0]])
+    for _ in range(3):
+        core.step(fly_to(core.positions, targets, core.max_distance, action_mode="waypoint", map_size=core.map_size))
+    np.testing.assert_allclose(core.positions, targets, atol=1e-6)
+    np.testing.assert_allclose(core.last_energy_spent, [core.hover_energy, core.hover_energy], atol=1e-6)
+    with pytest.raises(ValueError, match="map_size"):
+        fly_to(core.positions, targets, core.max_distance, action_mode="waypoint")

@@ -32,7 +32,7 @@ _MAX_REAL = 1e12
 _MIN_POSITIVE = 1e-12
 
 #: The rules a v1 env may switch; the first of each is the report's (``uav_coverage_v0``).
-ACTION_MODES = ("polar", "cartesian")
+ACTION_MODES = ("polar", "cartesian", "waypoint")
 WALL_MODES = ("refuse", "clip")
 REWARD_MODES = ("report", "coverage")
 
@@ -206,7 +206,9 @@ class UAVCoverageCore:
     :param reward_scale: every agent's reward is multiplied by this
     :param reward_clip: if set, rewards are clipped into [-reward_clip, reward_clip]
     :param action_mode: ``"polar"`` (the report's: a = (direction / 2 pi, distance / l_max)) or ``"cartesian"``
-        (displacement (dx, dy) = (2 a - 1) l_max, shortened to l_max when longer; a = (0.5, 0.5) hovers)
+        (displacement (dx, dy) = (2 a - 1) l_max, shortened to l_max when longer; a = (0.5, 0.5) hovers) or
+        ``"waypoint"`` (a is a point of the area, a L: the UAV flies straight toward it, at most l_max per step, and
+        hovers once there; no commanded move leaves the area)
     :param wall_mode: ``"refuse"`` (the report's: a move that would leave the area is not made and is charged
         ``wall_penalty``) or ``"clip"`` (the UAV stops at the boundary and is charged ``wall_penalty`` times the
         overshoot / l_max, so the penalty grows continuously from 0 with how far the move would have gone out)
@@ -591,14 +593,19 @@ class UAVCoverageCore:
 
         :param actions: (N, 2) in [0, 1]^2
         :return: displacement (N, 2) and distance ratio rho = length / l_max (N,); polar:
-            rho l_max (cos 2 pi a_0, sin 2 pi a_0) with rho = a_1; Cartesian: (2 a - 1) l_max, scaled down to length
-            l_max where it is longer
+            rho l_max (cos 2 pi a_0, sin 2 pi a_0) with rho = a_1; Cartesian: (2 a - 1) l_max, waypoint: a L minus the
+            position, each scaled down to length l_max where it is longer
         """
         if self.action_mode == "polar":
             theta = _TWO_PI * actions[:, 0]
             rho = actions[:, 1]
             return (rho * self.max_distance)[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1), rho
-        displacement = (2.0 * actions - 1.0) * self.max_distance
+        if self.action_mode == "waypoint":
+            # a = 1 maps to L, outside [0, L): the waypoint is kept just inside, so no commanded move hits a wall
+            waypoint = np.minimum(actions * self.map_size, np.nextafter(float(self.map_size), 0.0))
+            displacement = waypoint - self.positions
+        else:
+            displacement = (2.0 * actions - 1.0) * self.max_distance
         norm = np.sqrt(np.einsum("nd,nd->n", displacement, displacement))
         rho = np.minimum(norm / self.max_distance, 1.0)
         return displacement * (rho * self.max_distance / np.maximum(norm, 1e-12))[:, None], rho

@@ -134,9 +134,7 @@ class MultiAgentQuantileCritic(nn.Module):
         critic_inputs = th.cat([joint_features, actions.flatten(2)], dim=2)
         return self.quantile_nets(critic_inputs)
 
-    def quantiles_with_own_actions(
-        self, features: th.Tensor, actions: th.Tensor, own_actions: th.Tensor, joint_input: th.Tensor | None = None
-    ) -> th.Tensor:
+    def quantiles_with_own_actions(self, features: th.Tensor, actions: th.Tensor, own_actions: th.Tensor) -> th.Tensor:
         """
         The quantiles that the actor update needs: critic i scores the joint action ``actions`` with agent i's own
         action replaced by ``own_actions[:, i]``.
@@ -148,11 +146,8 @@ class MultiAgentQuantileCritic(nn.Module):
         :param features: (B, N, F) from ``encode``
         :param actions: the joint actions of the batch, (B, N, A)
         :param own_actions: the actions that replace each agent's own, (B, N, A)
-        :param joint_input: ``_joint_input(features, actions)`` if already built
         :return: quantiles (B, N, n_quantiles), ``[:, i]`` from critic i
         """
-        if joint_input is None:
-            joint_input = self._joint_input(features, actions)
         first = self.quantile_nets.net[0]
         n_agents, action_dim = actions.shape[1], actions.shape[2]
         n_feature_rows = first.in_features - n_agents * action_dim
@@ -160,7 +155,8 @@ class MultiAgentQuantileCritic(nn.Module):
         action_rows = first.weight[:, n_feature_rows:].view(n_agents, n_agents, action_dim, -1)
         own_rows = th.diagonal(action_rows, dim1=0, dim2=1).permute(2, 0, 1)
         change = (own_actions - actions).transpose(0, 1)  # (N, B, A)
-        return self._quantiles_from_hidden(th.baddbmm(self._first_layer(joint_input), change, own_rows))
+        shared = self._first_layer(self._joint_input(features, actions))
+        return self._quantiles_from_hidden(th.baddbmm(shared, change, own_rows))
 
     @staticmethod
     def _joint_input(features: th.Tensor, actions: th.Tensor) -> th.Tensor:

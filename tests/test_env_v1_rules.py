@@ -209,3 +209,54 @@ def test_fly_to_in_waypoint_encoding_reaches_the_target_and_hovers():
     np.testing.assert_allclose(core.last_energy_spent, [core.hover_energy, core.hover_energy], atol=1e-6)
     with pytest.raises(ValueError, match="map_size"):
         fly_to(core.positions, targets, core.max_distance, action_mode="waypoint")
+
+
+def test_teammate_channel_shows_the_active_teammates_within_radio_range():
+    # L = S = 16 (one pixel per cell), R = 6. Map point (x, y) is pixel (15 - floor(y), floor(x)).
+    start = [[1.0, 1.0], [2.0, 1.5], [10.0, 10.0], [1.5, 6.5], [14.2, 14.0], [14.0, 13.5]]
+    kwargs = dict(map_size=16, obs_size=16, n_uavs=6, start=start, comm_range=6.0)
+    core = UAVCoverageCore(**kwargs, teammate_channel=True)
+    plain = UAVCoverageCore(**kwargs)
+    obs, obs_plain = core.reset(seed=0), plain.reset(seed=0)
+    assert obs.shape == (6, 4, 16, 16) and obs_plain.shape == (6, 3, 16, 16)
+    np.testing.assert_array_equal(obs[:, :3], obs_plain)  # the first three channels are unchanged
+    # Links (distance <= 6): 0-1 (1.1), 0-3 (5.5), 1-3 (5.0), 2-4 (5.8), 2-5 (5.4), 4-5 (0.5); 0-2 is 12.7, 3-2 is 9.1
+    expected = {
+        0: {(14, 2), (9, 1)},
+        1: {(14, 1), (9, 1)},
+        2: {(1, 14), (2, 14)},
+        3: {(14, 1), (14, 2)},
+        4: {(5, 10), (2, 14)},
+        5: {(5, 10), (1, 14)},
+    }
+    for agent, pixels in expected.items():
+        assert {tuple(p) for p in np.argwhere(obs[agent, 3])} == pixels
+        assert (obs[agent, 3][obs[agent, 3] > 0] == 255).all()  # full batteries: round(255 E / E_max) = 255
+    # A depleted teammate drops out of the channel (and of the links).
+    core.energy[1] = 0.0
+    core.active[1] = False
+    assert {tuple(p) for p in np.argwhere(core.observations()[0, 3])} == {(9, 1)}
+
+
+def test_teammate_channel_env_api_and_validation():
+    env = uav_coverage_v1.parallel_env(obs_size=32, max_cycles=20, teammate_channel=True)
+    assert env.observation_space("uav_0").shape == (4, 32, 32)
+    assert env.state_space.shape == (3, 32, 32)
+    parallel_api_test(env, num_cycles=25)
+    with pytest.raises(TypeError, match="teammate_channel"):
+        UAVCoverageCore(teammate_channel="yes")
+
+
+def test_cnn_policy_trains_and_predicts_on_the_teammate_channel():
+    from sb3_maddpg import MADDPG, make_multiagent_vec_env
+
+    def make_env():
+        return uav_coverage_v1.parallel_env(map_size=16, obs_size=16, n_uavs=2, max_cycles=10, teammate_channel=True)
+
+    venv = make_multiagent_vec_env(make_env, n_envs=1, seed=0)
+    assert venv.observation_space.shape == (4, 16, 16)
+    policy_kwargs = dict(n_quantiles=3, net_arch=[8], features_extractor_kwargs=dict(padding=1, coord_channels=True))
+    model = MADDPG("CnnPolicy", venv, buffer_size=100, learning_starts=20, batch_size=8, policy_kwargs=policy_kwargs, seed=0)
+    model.learn(40)
+    actions, _ = model.predict(venv.reset(), deterministic=True)
+    assert actions.shape == (2, 2) and np.isfinite(actions).all()

@@ -220,6 +220,9 @@ class UAVCoverageCore:
     :param fairness_coef: with ``reward_mode="coverage"``, how much less a PoI is worth the more it has been covered
         so far, in [0, 1] (0: every covered PoI counts 1; 1: only the uncovered share of its history counts)
     :param energy_coef: with ``reward_mode="coverage"``, the weight of the UAV's own energy (>= 0)
+    :param teammate_channel: if True, observations get a fourth channel showing the active teammates within radio
+        range R (``comm_range``) of the agent, each on its cell block with its channel-1 value; what a decentralised
+        UAV can learn from its links. The state keeps its three channels (it already shows every UAV).
     """
 
     def __init__(
@@ -249,6 +252,7 @@ class UAVCoverageCore:
         reward_mode: str = "report",
         fairness_coef: float = 0.5,
         energy_coef: float = 0.5,
+        teammate_channel: bool = False,
     ) -> None:
         # --- configuration, validated where it enters -------------------------------------------------------------
         self.map_size = _check_int("map_size", map_size, 1)
@@ -280,6 +284,11 @@ class UAVCoverageCore:
         self.reward_mode = _check_choice("reward_mode", reward_mode, REWARD_MODES)
         self.fairness_coef = _check_real("fairness_coef", fairness_coef, low_inclusive=True, high=1.0, high_inclusive=True)
         self.energy_coef = _check_real("energy_coef", energy_coef, low_inclusive=True)
+        if not isinstance(teammate_channel, bool | np.bool_):
+            raise TypeError(f"teammate_channel must be a bool, got {teammate_channel!r}")
+        self.teammate_channel = bool(teammate_channel)
+        #: Channels of an agent's observation: 3, or 4 with the teammate channel.
+        self.n_obs_channels = 4 if self.teammate_channel else 3
 
         # --- PoIs ---------------------------------------------------------------------------------------------------
         self.pois_mode: str
@@ -647,13 +656,22 @@ class UAVCoverageCore:
         """
         Every agent's observation, in a new array (the env never writes into an array it has returned).
 
-        :return: (N, 3, S, S) uint8; channel 0 PoIs, channel 1 the agent's own cell, channel 2 coverage history
+        :return: (N, C, S, S) uint8; channel 0 PoIs, channel 1 the agent's own cell, channel 2 coverage history and,
+            with ``teammate_channel``, channel 3 the active teammates within R (C = ``n_obs_channels``)
         """
-        obs = np.empty((self.n_uavs, 3, self.obs_size, self.obs_size), dtype=np.uint8)
-        obs[...] = self._template  # channels 0 and 2 are shared; channel 1 of the template is all zeros
+        obs = np.empty((self.n_uavs, self.n_obs_channels, self.obs_size, self.obs_size), dtype=np.uint8)
+        obs[:, :3] = self._template  # channels 0 and 2 are shared; channel 1 of the template is all zeros
         rows, cols = self.cells_of(self.positions)
+        values = self._self_values()
+        blocks = self._blocks(obs)
         # Advanced indices split by slices: the selection has shape (N, s, s), one block per agent.
-        self._blocks(obs)[self._arange_n, 1, rows, :, cols, :] = self._self_values()[:, None, None]
+        blocks[self._arange_n, 1, rows, :, cols, :] = values[:, None, None]
+        if self.teammate_channel:
+            observer, seen = np.nonzero(self._linked())
+            grid = np.zeros((self.n_uavs, self.map_size, self.map_size), dtype=np.uint8)
+            # Teammates sharing a cell write the same block; the largest value wins, as in the state.
+            np.maximum.at(grid, (observer, rows[seen], cols[seen]), values[seen])
+            blocks[:, 3] = grid[:, :, None, :, None]
         return obs
 
     def state(self) -> np.ndarray:
@@ -672,15 +690,20 @@ class UAVCoverageCore:
     # -----------------------------------------------------------------------------------------------------------------
     # Helpers for the wrapper, rendering and evaluation
     # -----------------------------------------------------------------------------------------------------------------
+    def _linked(self) -> np.ndarray:
+        """(N, N) bool: active UAVs i != j within R of each other (the communication graph)."""
+        pair = self.positions[:, None, :] - self.positions[None, :, :]
+        linked = (np.einsum("ijd,ijd->ij", pair, pair) <= self.comm_range**2) & self.active[None, :] & self.active[:, None]
+        np.fill_diagonal(linked, False)
+        return linked
+
     def links(self) -> np.ndarray:
         """
         Communication links between active UAVs.
 
         :return: (M, 2) int array of pairs (i, j), i < j, of active UAVs within R of each other
         """
-        pair = self.positions[:, None, :] - self.positions[None, :, :]
-        linked = (np.einsum("ijd,ijd->ij", pair, pair) <= self.comm_range**2) & self.active[None, :] & self.active[:, None]
-        return np.argwhere(np.triu(linked, k=1))
+        return np.argwhere(np.triu(self._linked(), k=1))
 
     def metrics(self) -> dict[str, float]:
         """Team metrics of SPEC 1.5 after the last step: coverage, fairness, energy and energy_efficiency."""

@@ -24,7 +24,8 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
     """
     Multi-UAV coverage as a PettingZoo ``ParallelEnv``.
 
-    Agents ``uav_0 ... uav_{N-1}``; observation ``Box(0, 255, (3, S, S), uint8)``; action ``Box(0, 1, (2,), float32)``
+    Agents ``uav_0 ... uav_{N-1}``; observation ``Box(0, 255, (C, S, S), uint8)`` (C = 3, or 4 with
+    ``teammate_channel=True``); action ``Box(0, 1, (2,), float32)``
     = (direction / 2 pi, distance / l_max). Every agent's info holds ``coverage``, ``fairness``, ``energy``,
     ``energy_efficiency``, ``wall_hits`` and ``disconnections`` at every step (and after reset).
 
@@ -47,13 +48,13 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
         self.core = UAVCoverageCore(**core_kwargs)
-        n, size = self.core.n_uavs, self.core.obs_size
+        n, size, channels = self.core.n_uavs, self.core.obs_size, self.core.n_obs_channels
         self.possible_agents = [f"uav_{i}" for i in range(n)]
         self.agents: list[str] = []
         # One space object per agent, built once: observation_space(agent) must return the same object every call, and
         # separate objects let each agent's action space be seeded on its own.
         self._observation_spaces = {
-            agent: spaces.Box(0, 255, (3, size, size), dtype=np.uint8) for agent in self.possible_agents
+            agent: spaces.Box(0, 255, (channels, size, size), dtype=np.uint8) for agent in self.possible_agents
         }
         self._action_spaces = {agent: spaces.Box(0.0, 1.0, (2,), dtype=np.float32) for agent in self.possible_agents}
         self.state_space = spaces.Box(0, 255, (3, size, size), dtype=np.uint8)

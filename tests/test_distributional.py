@@ -159,3 +159,21 @@ def test_fused_quantile_huber_loss_passes_no_gradient_to_the_targets():
     target = th.randn(3, 4, requires_grad=True)
     quantile_huber_loss(current, target).sum().backward()
     assert current.grad is not None and target.grad is None
+
+
+@pytest.mark.parametrize("chunk_pairs", [1, 7 * 5, 3 * 7 * 5, 1 << 17])
+def test_fused_quantile_huber_loss_in_row_chunks_equals_one_piece(monkeypatch, chunk_pairs):
+    # 4 x 5 = 20 rows of 5 x 7 pairs: chunks of 1 row (n m > chunk), 1 row, 3 rows (a last chunk of 2) and all rows
+    from sb3_maddpg.common import distributional
+
+    generator = th.Generator().manual_seed(0)
+    current = th.randn(4, 5, 5, generator=generator, dtype=th.float64).requires_grad_()
+    target = th.randn(4, 5, 7, generator=generator, dtype=th.float64) * 2
+    taus = quantile_midpoints(5).double()
+    expected = _plain_quantile_huber_loss(current, target, taus, 1.0)
+    (expected_grad,) = th.autograd.grad(expected.sum(), current)
+    monkeypatch.setattr(distributional, "_CHUNK_PAIRS", chunk_pairs)
+    chunked = quantile_huber_loss(current, target, taus)
+    (chunked_grad,) = th.autograd.grad(chunked.sum(), current)
+    assert th.allclose(chunked, expected, rtol=1e-12, atol=1e-12)
+    assert th.allclose(chunked_grad, expected_grad, rtol=1e-12, atol=1e-12)

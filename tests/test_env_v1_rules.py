@@ -260,3 +260,30 @@ def test_cnn_policy_trains_and_predicts_on_the_teammate_channel():
     model.learn(40)
     actions, _ = model.predict(venv.reset(), deterministic=True)
     assert actions.shape == (2, 2) and np.isfinite(actions).all()
+
+
+def test_marginal_reward_credits_only_the_pois_no_teammate_covers():
+    # L = 4, R0 = 1, N = 2, K = 2 PoIs: P0 (1, 1) under both hovering UAVs, P1 (3, 1) only under U1 at (2.5, 1).
+    core = UAVCoverageCore(
+        map_size=4,
+        n_uavs=2,
+        pois=[[1.0, 1.0], [3.0, 1.0]],
+        start=[[1.0, 1.0], [2.0, 1.0]],
+        max_distance=1.0,
+        move_energy=1.0,
+        hover_energy=0.5,
+        coverage_range=1.0,
+        comm_range=2.0,
+        obs_size=4,
+        **{**V1_RULES, "reward_mode": "marginal"},
+    )
+    core.reset(seed=0)
+    # Step 1, c_0 = 0: P0 is covered by both, so it is nobody's marginal PoI; P1 is U1's alone: (N / K) * 1 = 1.
+    # Energy term 0.5 * E_h / (eta l_max) = 0.25 each; connected (distance 1 <= 2).
+    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
+    np.testing.assert_allclose(rewards, [0.0 - 0.25, 1.0 - 0.25])
+    # The metrics do not depend on the reward: both PoIs are covered
+    assert core.coverage == pytest.approx(1.0)
+    # Step 2, c_1 = (1, 1): P1 is worth 1 - 0.5 = 0.5 to U1
+    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
+    np.testing.assert_allclose(rewards, [-0.25, 0.5 - 0.25])

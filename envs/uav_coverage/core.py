@@ -34,7 +34,7 @@ _MIN_POSITIVE = 1e-12
 #: The rules a v1 env may switch; the first of each is the report's (``uav_coverage_v0``).
 ACTION_MODES = ("polar", "cartesian", "waypoint")
 WALL_MODES = ("refuse", "clip")
-REWARD_MODES = ("report", "coverage")
+REWARD_MODES = ("report", "coverage", "marginal")
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -216,10 +216,11 @@ class UAVCoverageCore:
         plus ``entropy_coef`` times the spatial entropy) or ``"coverage"`` (per-agent credit of order 1: each PoI
         covered this step is worth ``1 - fairness_coef * c_{t-1}(k)``, split equally between the UAVs covering it and
         scaled by N / K, so the agents' rewards sum to N times the team's weighted coverage fraction; minus
-        ``energy_coef`` times the UAV's own energy this step / (eta l_max))
-    :param fairness_coef: with ``reward_mode="coverage"``, how much less a PoI is worth the more it has been covered
-        so far, in [0, 1] (0: every covered PoI counts 1; 1: only the uncovered share of its history counts)
-    :param energy_coef: with ``reward_mode="coverage"``, the weight of the UAV's own energy (>= 0)
+        ``energy_coef`` times the UAV's own energy this step / (eta l_max)) or ``"marginal"`` (as ``"coverage"``,
+        but each UAV is credited only with the PoIs that no other UAV covers: the difference reward)
+    :param fairness_coef: with ``reward_mode="coverage"`` or ``"marginal"``, how much less a PoI is worth the more it
+        has been covered so far, in [0, 1] (0: every covered PoI counts 1; 1: only the uncovered share of its history counts)
+    :param energy_coef: with ``reward_mode="coverage"`` or ``"marginal"``, the weight of the UAV's own energy (>= 0)
     :param teammate_channel: if True, observations get a fourth channel showing the active teammates within radio
         range R (``comm_range``) of the agent, each on its cell block with its channel-1 value; what a decentralised
         UAV can learn from its links. The state keeps its three channels (it already shows every UAV).
@@ -532,7 +533,7 @@ class UAVCoverageCore:
         covered = ((sq_dist <= self.coverage_range**2) & active[:, None]).any(axis=0)
         self.visits += covered
         # Weights of the coverage reward use c_{t-1}(k), read before this step's update.
-        if self.reward_mode == "coverage":
+        if self.reward_mode != "report":
             credit = self._coverage_credit(sq_dist <= self.coverage_range**2, active)
         np.divide(self.visits, self.t, out=self.coverage_scores)
         score_sum = float(self.coverage_scores.sum())
@@ -621,16 +622,25 @@ class UAVCoverageCore:
 
     def _coverage_credit(self, in_range: np.ndarray, active: np.ndarray) -> np.ndarray:
         """
-        Each UAV's share of this step's weighted coverage (``reward_mode="coverage"``).
+        Each UAV's credit for this step's weighted coverage (``reward_mode="coverage"`` or ``"marginal"``).
+
+        ``"coverage"`` splits each covered PoI's worth equally between the UAVs covering it. ``"marginal"`` is the
+        difference reward: a UAV is credited only with the PoIs no other UAV covers, the coverage the team would
+        lose without it, so a UAV whose disc overlaps a teammate's gains nothing on the overlap.
 
         :param in_range: (N, K) bool, PoI k within R0 of UAV i after the move
         :param active: (N,) bool, the UAVs active this step
         :return: (N,) credit: (N / K) sum_k [i covers k] (1 - fairness_coef c_{t-1}(k)) / (number of UAVs covering k)
+            with ``"coverage"``; the same sum over the PoIs that only UAV i covers with ``"marginal"``
         """
         covering = in_range & active[:, None]
         n_covering = covering.sum(axis=0)
         # c_{t-1}(k) = visits before this step / (t - 1); coverage_scores still holds it (0 at the first step).
-        weight = (1.0 - self.fairness_coef * self.coverage_scores) / np.maximum(n_covering, 1)
+        weight = 1.0 - self.fairness_coef * self.coverage_scores
+        if self.reward_mode == "marginal":
+            weight = weight * (n_covering == 1)
+        else:
+            weight = weight / np.maximum(n_covering, 1)
         return covering @ weight * (self.n_uavs / len(weight))
 
     # -----------------------------------------------------------------------------------------------------------------

@@ -30,6 +30,7 @@ _WORKSPACES: dict[tuple[tuple[int, ...], th.dtype, th.device], tuple[th.Tensor, 
 
 
 _WORKSPACE_MAX_ELEMENTS = 1 << 22  # 16 MB per float32 tensor; larger ones are allocated per call (and freed)
+_CHUNK_PAIRS = 1 << 17  # (row, j, k) pairs per chunk on CPU: three float32 scratch tensors of 512 KB
 
 
 def _workspace(shape: tuple[int, ...], dtype: th.dtype, device: th.device) -> tuple[th.Tensor, ...]:
@@ -70,23 +71,52 @@ class _FusedQuantileHuberLoss(th.autograd.Function):
 
     @staticmethod
     def _forward(ctx: Any, current: th.Tensor, target: th.Tensor, taus: th.Tensor, kappa: float) -> th.Tensor:
+        n, m = current.shape[-1], target.shape[-1]
+        dtype = th.result_type(current, target)
+        rows_current = current.reshape(-1, n)
+        rows_target = target.reshape(-1, m)
+        n_rows = rows_current.shape[0]
+        loss = th.empty(n_rows, dtype=dtype, device=current.device)
+        grad = th.empty(n_rows, n, dtype=dtype, device=current.device)
+        tails = 1.0 - 2.0 * taus.to(dtype)  # (n,)
+        ones = th.ones(m, dtype=dtype, device=current.device)
+        # Row chunks whose (rows, n, m) scratch tensors stay in a core's cache: the passes over them are memory-bound,
+        # and one pass over the whole batch evicts what the next pass reads (measured on a 2 MB-L2 core: 256 x 3
+        # rows of 25 x 25 pairs, 1.36 ms in one piece, 1.00 ms in 4 chunks).
+        step = max(1, _CHUNK_PAIRS // (n * m)) if current.device.type == "cpu" else n_rows
+        for start in range(0, n_rows, step):
+            stop = min(start + step, n_rows)
+            _FusedQuantileHuberLoss._rows(
+                rows_current[start:stop], rows_target[start:stop], tails, ones, kappa, loss[start:stop], grad[start:stop]
+            )
+        ctx.save_for_backward(grad.reshape(current.shape))
+        return loss.reshape(current.shape[:-1])
+
+    @staticmethod
+    def _rows(
+        current: th.Tensor,
+        target: th.Tensor,
+        tails: th.Tensor,
+        ones: th.Tensor,
+        kappa: float,
+        loss_out: th.Tensor,
+        grad_out: th.Tensor,
+    ) -> None:
+        """Loss (rows,) and gradient (rows, n) of a block of rows, written into ``loss_out`` and ``grad_out``."""
         scale = 0.5 / (kappa * target.shape[-1])
         shape = (*current.shape, target.shape[-1])
-        delta, clamped, magnitude = _workspace(shape, th.result_type(current, target), current.device)
-        th.sub(target.unsqueeze(-2), current.unsqueeze(-1), out=delta)  # (..., n, m)
+        delta, clamped, magnitude = _workspace(shape, loss_out.dtype, current.device)
+        th.sub(target.unsqueeze(-2), current.unsqueeze(-1), out=delta)  # (rows, n, m)
         th.clamp(delta, -kappa, kappa, out=clamped)
         th.abs(clamped, out=magnitude)
-        tails = 1.0 - 2.0 * taus.to(delta.dtype)  # (n,)
         # d loss_j / d z_j = -sum_k w_jk c_jk / (kappa m)
-        ones = th.ones(target.shape[-1], dtype=delta.dtype, device=delta.device)
-        grad = (clamped @ ones).sub_(tails * (magnitude @ ones)).mul_(-scale)  # (..., n)
+        th.matmul(clamped, ones, out=grad_out)
+        grad_out.sub_(tails * (magnitude @ ones)).mul_(-scale)  # (rows, n)
         # In place from here on: e = delta - c / 2, then c e and |c| e
         excess = delta.add_(clamped, alpha=-0.5)
         huber = clamped.mul_(excess) @ ones
         signed_huber = magnitude.mul_(excess) @ ones
-        loss = huber.sub_(tails * signed_huber).sum(dim=-1).mul_(scale)  # (...)
-        ctx.save_for_backward(grad)
-        return loss
+        th.sum(huber.sub_(tails * signed_huber), dim=-1, out=loss_out).mul_(scale)  # (rows,)
 
     @staticmethod
     def backward(ctx, grad_output: th.Tensor) -> tuple[th.Tensor | None, None, None, None]:  # type: ignore[override]

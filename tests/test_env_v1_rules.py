@@ -287,3 +287,26 @@ def test_marginal_reward_credits_only_the_pois_no_teammate_covers():
     # Step 2, c_1 = (1, 1): P1 is worth 1 - 0.5 = 0.5 to U1
     _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
     np.testing.assert_allclose(rewards, [-0.25, 0.5 - 0.25])
+
+
+def test_hover_deadband_turns_short_moves_into_hovering():
+    core = scenario(hover_deadband=0.2)  # l_max = 1
+    start = core.positions.copy()
+    # U0 a = (0.55, 0.5): d = (0.1, 0), rho 0.1 < 0.2: hovers, e = E_h = 0.5.
+    # U1 a = (0.5, 0.65): d = (0, 0.3), rho 0.3: moves, e = eta l + E_h (1 - rho) = 0.3 + 0.5 * 0.7 = 0.65
+    core.step(np.array([[0.55, 0.5], [0.5, 0.65]]))
+    np.testing.assert_allclose(core.positions, start + [[0.0, 0.0], [0.0, 0.3]], atol=1e-12)
+    np.testing.assert_allclose(core.last_energy_spent, [0.5, 0.65])
+    # Polar actions too: a1 = 0.15 < 0.2 hovers whatever the direction
+    polar = scenario(action_mode="polar", hover_deadband=0.2)
+    before = polar.positions.copy()
+    polar.step(np.array([[0.3, 0.15], [0.3, 0.0]]))
+    np.testing.assert_allclose(polar.positions, before, atol=1e-12)
+    np.testing.assert_allclose(polar.last_energy_spent, [0.5, 0.5])
+    # 0 keeps every move; 1 and negative values are refused
+    plain = scenario()
+    plain.step(np.array([[0.55, 0.5], [0.5, 0.5]]))
+    np.testing.assert_allclose(plain.positions[0], start[0] + [0.1, 0.0], atol=1e-12)
+    for bad in (1.0, -0.1, float("nan")):
+        with pytest.raises(ValueError, match="hover_deadband"):
+            UAVCoverageCore(hover_deadband=bad)

@@ -224,6 +224,8 @@ class UAVCoverageCore:
     :param teammate_channel: if True, observations get a fourth channel showing the active teammates within radio
         range R (``comm_range``) of the agent, each on its cell block with its channel-1 value; what a decentralised
         UAV can learn from its links. The state keeps its three channels (it already shows every UAV).
+    :param hover_deadband: in [0, 1): a commanded move shorter than this fraction of l_max is not made and the UAV
+        hovers (rho = 0, energy E_h), in every action mode; 0 (the report's rule) keeps every move
     """
 
     def __init__(
@@ -254,6 +256,7 @@ class UAVCoverageCore:
         fairness_coef: float = 0.5,
         energy_coef: float = 0.5,
         teammate_channel: bool = False,
+        hover_deadband: float = 0.0,
     ) -> None:
         # --- configuration, validated where it enters -------------------------------------------------------------
         self.map_size = _check_int("map_size", map_size, 1)
@@ -288,6 +291,7 @@ class UAVCoverageCore:
         if not isinstance(teammate_channel, bool | np.bool_):
             raise TypeError(f"teammate_channel must be a bool, got {teammate_channel!r}")
         self.teammate_channel = bool(teammate_channel)
+        self.hover_deadband = _check_real("hover_deadband", hover_deadband, low_inclusive=True, high=1.0)
         #: Channels of an agent's observation: 3, or 4 with the teammate channel.
         self.n_obs_channels = 4 if self.teammate_channel else 3
 
@@ -604,12 +608,14 @@ class UAVCoverageCore:
         :param actions: (N, 2) in [0, 1]^2
         :return: displacement (N, 2) and distance ratio rho = length / l_max (N,); polar:
             rho l_max (cos 2 pi a_0, sin 2 pi a_0) with rho = a_1; Cartesian: (2 a - 1) l_max, waypoint: a L minus the
-            position, each scaled down to length l_max where it is longer
+            position, each scaled down to length l_max where it is longer; moves shorter than ``hover_deadband`` l_max
+            become hovering
         """
         if self.action_mode == "polar":
             theta = _TWO_PI * actions[:, 0]
             rho = actions[:, 1]
-            return (rho * self.max_distance)[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1), rho
+            displacement = (rho * self.max_distance)[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1)
+            return self._apply_hover_deadband(displacement, rho)
         if self.action_mode == "waypoint":
             # a = 1 maps to L, outside [0, L): the waypoint is kept just inside, so no commanded move hits a wall
             waypoint = np.minimum(actions * self.map_size, np.nextafter(float(self.map_size), 0.0))
@@ -618,7 +624,14 @@ class UAVCoverageCore:
             displacement = (2.0 * actions - 1.0) * self.max_distance
         norm = np.sqrt(np.einsum("nd,nd->n", displacement, displacement))
         rho = np.minimum(norm / self.max_distance, 1.0)
-        return displacement * (rho * self.max_distance / np.maximum(norm, 1e-12))[:, None], rho
+        return self._apply_hover_deadband(displacement * (rho * self.max_distance / np.maximum(norm, 1e-12))[:, None], rho)
+
+    def _apply_hover_deadband(self, displacement: np.ndarray, rho: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Commanded moves shorter than ``hover_deadband`` l_max become hovering (no move, rho = 0)."""
+        if self.hover_deadband == 0.0:
+            return displacement, rho
+        still = rho < self.hover_deadband
+        return np.where(still[:, None], 0.0, displacement), np.where(still, 0.0, rho)
 
     def _coverage_credit(self, in_range: np.ndarray, active: np.ndarray) -> np.ndarray:
         """

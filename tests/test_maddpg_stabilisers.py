@@ -178,7 +178,28 @@ def test_coord_channels_tell_positions_apart_for_a_stacked_encoder():
     assert "coords" not in cnn.state_dict()
 
 
-@pytest.mark.parametrize("kwargs", [dict(padding=2), dict(padding=True), dict(coord_channels=1)])
+def test_position_channel_appends_the_marked_cells_centre_and_maximum():
+    space = spaces.Box(0, 255, (3, 16, 16), np.uint8)
+    th.manual_seed(0)
+    cnn = ReportCNN(space, n_agents=2, padding=1, coord_channels=True, position_channel=1)
+    assert cnn.features_dim == 64 * 2 * 2 + 3
+    images = th.zeros(2, 2, 3, 16, 16)
+    images[:, 0, 1, 3, 5] = 0.8  # agent 0's cell: row 3, column 5 -> (5 / 15, 3 / 15), level 0.8
+    images[0, 1, 1, 15, 0] = images[0, 1, 1, 15, 1] = 0.5  # two marked pixels: their mean column 0.5 / 15, row 1
+    out = cnn(images)  # batch row 1, agent 1: an empty channel gives 0, not 0 / 0
+    expected = th.tensor([[[5 / 15, 3 / 15, 0.8], [0.5 / 15, 1.0, 0.5]], [[5 / 15, 3 / 15, 0.8], [0.0, 0.0, 0.0]]])
+    assert th.allclose(out[..., -3:], expected, atol=1e-6)
+    # The same numbers with one encoder on 4-D input, and the gradient reaches the convolutions as before
+    single = ReportCNN(space, padding=1, position_channel=1)
+    assert th.allclose(single(images[:, 0])[:, -3:], expected[:, 0], atol=1e-6)
+    single(images[:, 0]).sum().backward()
+    assert single.cnn[0].weight.grad is not None
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [dict(padding=2), dict(padding=True), dict(coord_channels=1), dict(position_channel=3), dict(position_channel=True)],
+)
 def test_report_cnn_options_are_validated(kwargs):
     with pytest.raises((ValueError, TypeError), match=next(iter(kwargs))):
         ReportCNN(spaces.Box(0, 255, (3, 16, 16), np.uint8), **kwargs)

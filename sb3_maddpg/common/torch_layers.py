@@ -39,6 +39,10 @@ class ReportCNN(BaseFeaturesExtractor):
         (a team that stays still) drives the running variances towards 0; the target networks, in eval mode, then
         divide small drifts by sqrt(eps) (316x at 1e-5) and their TD targets can diverge. A larger value (1e-3)
         bounds this, through ``policy_kwargs=dict(features_extractor_kwargs=dict(batch_norm_eps=1e-3))``
+    :param position_channel: index of an input channel that marks one object (the UAV's own cell, channel 1 of the
+        UAV env), or None. When set, three numbers are appended to the features: the channel's centre of mass
+        (column, row in [0, 1], 0 where the channel is empty) and its maximum (the UAV env's energy level). The
+        networks then get the position exactly, where otherwise they must decode it from three stride-2 convolutions
     """
 
     stacks_agents: ClassVar[bool] = True
@@ -51,6 +55,7 @@ class ReportCNN(BaseFeaturesExtractor):
         padding: int = 0,
         coord_channels: bool = False,
         batch_norm_eps: float = 1e-5,
+        position_channel: int | None = None,
     ) -> None:
         if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 3:
             raise ValueError(
@@ -68,8 +73,17 @@ class ReportCNN(BaseFeaturesExtractor):
             raise ValueError(f"padding must be 0 (the report's) or 1 (every pixel read), got {padding!r}")
         if not isinstance(coord_channels, bool):
             raise TypeError(f"coord_channels must be True or False, got {coord_channels!r}")
+        if position_channel is not None and (
+            isinstance(position_channel, bool)
+            or not isinstance(position_channel, int)
+            or not 0 <= position_channel < n_channels
+        ):
+            raise ValueError(
+                f"position_channel must be None or a channel index in [0, {n_channels - 1}], got {position_channel!r}"
+            )
         super().__init__(observation_space, features_dim=1)
         self.n_agents = n_agents
+        self.position_channel = position_channel
         self.coord_channels = coord_channels
         g = n_agents
         in_channels = n_channels + (2 if coord_channels else 0)
@@ -92,6 +106,22 @@ class ReportCNN(BaseFeaturesExtractor):
             dummy = th.zeros(1, g * in_channels, height, width)
             self._features_dim = self.cnn(dummy).numel() // g
         self.cnn.train()
+        if position_channel is not None:
+            self.register_buffer("pixel_cols", th.linspace(0.0, 1.0, width), persistent=False)
+            self.register_buffer("pixel_rows", th.linspace(0.0, 1.0, height), persistent=False)
+            self._features_dim += 3
+
+    def _position_features(self, observations: th.Tensor) -> th.Tensor:
+        """(..., C, H, W) images -> (..., 3): centre of mass (column, row) and maximum of ``position_channel``."""
+        marked = observations[..., self.position_channel, :, :]  # (..., H, W)
+        by_col, by_row = marked.sum(dim=-2), marked.sum(dim=-1)  # (..., W), (..., H)
+        mass = by_col.sum(dim=-1, keepdim=True)
+        # An empty channel (a depleted UAV) gives position 0 instead of 0 / 0
+        scale = th.where(mass > 0, mass, th.ones_like(mass)).reciprocal()
+        col = (by_col @ self.pixel_cols.to(marked.dtype)).unsqueeze(-1) * scale
+        row = (by_row @ self.pixel_rows.to(marked.dtype)).unsqueeze(-1) * scale
+        peak = marked.flatten(-2).amax(dim=-1, keepdim=True)
+        return th.cat([col, row, peak], dim=-1)
 
     def _with_coords(self, observations: th.Tensor) -> th.Tensor:
         """Append the coordinate channels to (..., C, H, W) images."""
@@ -103,14 +133,18 @@ class ReportCNN(BaseFeaturesExtractor):
         :param observations: (B, C, H, W) when ``n_agents == 1``, otherwise (B, n_agents, C, H, W)
         :return: features (B, F) when ``n_agents == 1`` and the input is 4-D, otherwise (B, n_agents, F)
         """
+        positions = self._position_features(observations) if self.position_channel is not None else None
         if self.coord_channels:
             observations = self._with_coords(observations)
         if observations.dim() == 4:
-            return self._encode(observations).flatten(1)
-        batch_size = observations.shape[0]
-        # (B, N, C, H, W) -> (B, N*C, H, W): group g of the convolutions reads agent g's channels
-        out = self._encode(observations.flatten(1, 2))
-        return out.reshape(batch_size, self.n_agents, -1)
+            features = self._encode(observations).flatten(1)
+        else:
+            batch_size = observations.shape[0]
+            # (B, N, C, H, W) -> (B, N*C, H, W): group g of the convolutions reads agent g's channels
+            features = self._encode(observations.flatten(1, 2)).reshape(batch_size, self.n_agents, -1)
+        if positions is not None:
+            features = th.cat([features, positions.to(features.dtype)], dim=-1)
+        return features
 
     def _encode(self, images: th.Tensor) -> th.Tensor:
         # Channels-last halves the time of the grouped convolutions on CPU (oneDNN); the output goes back to the

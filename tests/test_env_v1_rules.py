@@ -89,22 +89,17 @@ def test_coverage_reward_first_and_second_step():
     np.testing.assert_allclose(rewards, [2 / 3 - 0.25, 2 / 3 - 0.5])
 
 
+def two_uav_core(pois: list, start: list, **overrides) -> UAVCoverageCore:
+    """Two UAVs on a 4 x 4 map with l_max = 1, eta = 1, E_h = 0.5, R0 = 1, R = 2 and v1's rules, after reset."""
+    kwargs = dict(map_size=4, n_uavs=2, max_distance=1.0, move_energy=1.0, hover_energy=0.5, coverage_range=1.0)
+    core = UAVCoverageCore(**kwargs, pois=pois, start=start, comm_range=2.0, obs_size=4, **{**V1_RULES, **overrides})
+    core.reset(seed=0)
+    return core
+
+
 def test_coverage_credit_is_split_between_the_uavs_covering_a_poi():
     # One PoI under two hovering UAVs: each gets (N / K) * 1 / 2 = (2 / 1) / 2 = 1, minus 0.5 * E_h = 0.25
-    core = UAVCoverageCore(
-        map_size=4,
-        n_uavs=2,
-        pois=[[1.0, 1.0]],
-        start=[[1.0, 1.0], [1.5, 1.0]],
-        max_distance=1.0,
-        move_energy=1.0,
-        hover_energy=0.5,
-        coverage_range=1.0,
-        comm_range=2.0,
-        obs_size=4,
-        **V1_RULES,
-    )
-    core.reset(seed=0)
+    core = two_uav_core(pois=[[1.0, 1.0]], start=[[1.0, 1.0], [1.5, 1.0]])
     _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
     np.testing.assert_allclose(rewards, [0.75, 0.75])
     # With fairness_coef = 1 the PoI covered at every step so far is worth nothing at the next step
@@ -264,20 +259,7 @@ def test_cnn_policy_trains_and_predicts_on_the_teammate_channel():
 
 def test_marginal_reward_credits_only_the_pois_no_teammate_covers():
     # L = 4, R0 = 1, N = 2, K = 2 PoIs: P0 (1, 1) under both hovering UAVs, P1 (3, 1) only under U1 at (2.5, 1).
-    core = UAVCoverageCore(
-        map_size=4,
-        n_uavs=2,
-        pois=[[1.0, 1.0], [3.0, 1.0]],
-        start=[[1.0, 1.0], [2.0, 1.0]],
-        max_distance=1.0,
-        move_energy=1.0,
-        hover_energy=0.5,
-        coverage_range=1.0,
-        comm_range=2.0,
-        obs_size=4,
-        **{**V1_RULES, "reward_mode": "marginal"},
-    )
-    core.reset(seed=0)
+    core = two_uav_core(pois=[[1.0, 1.0], [3.0, 1.0]], start=[[1.0, 1.0], [2.0, 1.0]], reward_mode="marginal")
     # Step 1, c_0 = 0: P0 is covered by both, so it is nobody's marginal PoI; P1 is U1's alone: (N / K) * 1 = 1.
     # Energy term 0.5 * E_h / (eta l_max) = 0.25 each; connected (distance 1 <= 2).
     _, rewards, _, _ = core.step(np.full((2, 2), 0.5))

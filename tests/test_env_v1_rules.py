@@ -91,8 +91,9 @@ def test_coverage_reward_first_and_second_step():
 
 def two_uav_core(pois: list, start: list, **overrides) -> UAVCoverageCore:
     """Two UAVs on a 4 x 4 map with l_max = 1, eta = 1, E_h = 0.5, R0 = 1, R = 2 and v1's rules, after reset."""
-    kwargs = dict(map_size=4, n_uavs=2, max_distance=1.0, move_energy=1.0, hover_energy=0.5, coverage_range=1.0)
-    core = UAVCoverageCore(**kwargs, pois=pois, start=start, comm_range=2.0, obs_size=4, **{**V1_RULES, **overrides})
+    geometry = dict(map_size=4, n_uavs=2, obs_size=4, max_distance=1.0, coverage_range=1.0, comm_range=2.0)
+    energy = dict(move_energy=1.0, hover_energy=0.5)
+    core = UAVCoverageCore(**geometry, **energy, pois=pois, start=start, **{**V1_RULES, **overrides})
     core.reset(seed=0)
     return core
 
@@ -258,7 +259,8 @@ def test_cnn_policy_trains_and_predicts_on_the_teammate_channel():
 
 
 def test_marginal_reward_credits_only_the_pois_no_teammate_covers():
-    # L = 4, R0 = 1, N = 2, K = 2 PoIs: P0 (1, 1) under both hovering UAVs, P1 (3, 1) only under U1 at (2.5, 1).
+    # L = 4, R0 = 1 (inclusive), N = 2, K = 2 PoIs, both UAVs hovering: P0 (1, 1) under U0 at (1, 1) and U1 at
+    # (2, 1); P1 (3, 1) only under U1.
     core = two_uav_core(pois=[[1.0, 1.0], [3.0, 1.0]], start=[[1.0, 1.0], [2.0, 1.0]], reward_mode="marginal")
     # Step 1, c_0 = 0: P0 is covered by both, so it is nobody's marginal PoI; P1 is U1's alone: (N / K) * 1 = 1.
     # Energy term 0.5 * E_h / (eta l_max) = 0.25 each; connected (distance 1 <= 2).

@@ -544,10 +544,8 @@ class UAVCoverageCore:
 
         # 6. Connectivity: an active UAV with no other active UAV within R is charged p_c (never when N = 1).
         if self.n_uavs > 1:
-            pair = self.positions[:, None, :] - self.positions[None, :, :]
-            linked = (np.einsum("ijd,ijd->ij", pair, pair) <= self.comm_range**2) & active[None, :] & active[:, None]
-            np.fill_diagonal(linked, False)
-            disconnected = active & ~linked.any(axis=1)
+            # self.active still holds this step's active set (depletion takes effect below, at the end of the step)
+            disconnected = active & ~self._linked().any(axis=1)
         else:
             disconnected = np.zeros(1, dtype=bool)
 

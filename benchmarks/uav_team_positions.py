@@ -1,0 +1,59 @@
+"""
+Where a trained UAV team goes: for a saved MADDPG model on ``uav_coverage_v1`` (``obs_size=16``, 300-step episodes,
+random starts), each episode's metrics, each UAV's mean distance flown per step over the last 100 steps, the pairs
+of UAVs that end within 3 cells of each other, and each UAV's final position in every episode (does it keep one
+place whatever its start?).
+
+    python benchmarks/uav_team_positions.py runs/pos/pos_s0.zip --episodes 4
+    python benchmarks/uav_team_positions.py runs/tm/teammates_s0.zip --env-kwargs '{"teammate_channel": true}'
+"""
+
+import argparse
+import json
+
+import numpy as np
+import torch as th
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg_envs import uav_coverage_v1
+
+EVAL_SEED = 10_000  # the first evaluation episode of benchmarks/uav_learning.py and docs/results.md
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    parser.add_argument("model", help="a saved MADDPG model (.zip)")
+    parser.add_argument("--env-kwargs", type=json.loads, default={}, help="JSON dict of extra env parameters")
+    parser.add_argument("--episodes", type=int, default=4)
+    parser.add_argument("--seed", type=int, default=EVAL_SEED, help="seed of the first episode")
+    args = parser.parse_args()
+    th.set_num_threads(1)
+    model = MADDPG.load(args.model, device="cpu")
+    finals = []
+    for episode in range(args.episodes):
+        env = uav_coverage_v1.parallel_env(obs_size=16, max_cycles=300, **args.env_kwargs)
+        observations, _ = env.reset(seed=args.seed + episode)
+        trajectory = [env.core.positions.copy()]
+        while env.agents:
+            stacked = np.stack([observations[agent] for agent in env.possible_agents])
+            actions, _ = model.predict(stacked, deterministic=True)
+            observations, *_ = env.step({agent: actions[i] for i, agent in enumerate(env.possible_agents)})
+            trajectory.append(env.core.positions.copy())
+        path = np.array(trajectory)  # (T + 1, N, 2)
+        speed = np.linalg.norm(np.diff(path, axis=0), axis=-1)[-100:].mean(axis=0)
+        final = path[-1]
+        finals.append(final)
+        distances = np.linalg.norm(final[:, None] - final[None], axis=-1)[np.triu_indices(len(final), 1)]
+        m = env.core.metrics()
+        print(
+            f"episode {episode}: c {m['coverage']:.3f} f {m['fairness']:.3f} e {m['energy']:.3f} "
+            f"eta {m['energy_efficiency']:.3f} | distance per step, last 100 steps: {speed.round(2).tolist()} | "
+            f"pairs within 3 cells: {int((distances < 3).sum())}, closest pair {distances.min():.2f}"
+        )
+    print("final position (x, y) of each UAV in each episode:")
+    for i, positions in enumerate(np.array(finals).transpose(1, 0, 2)):
+        print(f"  uav_{i}: {positions.round(1).tolist()}")
+
+
+if __name__ == "__main__":
+    main()

@@ -26,8 +26,10 @@ ENV[alpha05]=uav_coverage_cpu_v1; ALGO[alpha05]="{$v1_algo, \"cvar_alpha\": 0.5}
 ENV[alpha1]=uav_coverage_cpu_v1;  ALGO[alpha1]="{$v1_algo, \"cvar_alpha\": 1.0}";  POLICY[alpha1]="{\"n_quantiles\": 25, $encoder}"
 ENV[alpha01]=uav_coverage_cpu_v1; ALGO[alpha01]="{$v1_algo, \"cvar_alpha\": 0.1}"; POLICY[alpha01]="{\"n_quantiles\": 25, $encoder}"
 ENV[classic]=uav_coverage_cpu_v1; ALGO[classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[classic]="{\"n_quantiles\": 1, $encoder}"
-# The same with a faster actor (actor learning rate 3e-4 instead of 1e-4)
-ENV[classic_actor3e4]=uav_coverage_cpu_v1; ALGO[classic_actor3e4]="{${v1_algo/\"actor_learning_rate\": 0.0001/\"actor_learning_rate\": 0.0003}, \"cvar_alpha\": 1.0}"; POLICY[classic_actor3e4]="{\"n_quantiles\": 1, $encoder}"
+# The same with a faster actor (actor learning rate 3e-4 instead of 1e-4: zoo_configs/maddpg.yml's v1 entries)
+fast_actor=${v1_algo/\"actor_learning_rate\": 0.0001/\"actor_learning_rate\": 0.0003}
+ENV[classic_actor3e4]=uav_coverage_cpu_v1; ALGO[classic_actor3e4]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[classic_actor3e4]="{\"n_quantiles\": 1, $encoder}"
+ENV[alpha05_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha05_actor3e4]="{$fast_actor, \"cvar_alpha\": 0.5}"; POLICY[alpha05_actor3e4]="{\"n_quantiles\": 25, $encoder}"
 # v0 (the report's task at 1 pixel per cell: polar actions, refused walls, the report's reward) with the same settings
 ENV[v0_classic]=uav_coverage_fast_v0; ALGO[v0_classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[v0_classic]="{\"n_quantiles\": 1, $encoder}"
 

@@ -34,7 +34,7 @@ ENV[alpha05_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha05_actor3e4]="{$fast_actor,
 ENV[v0_classic]=uav_coverage_fast_v0; ALGO[v0_classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[v0_classic]="{\"n_quantiles\": 1, $encoder}"
 
 configs=("$@")
-[ ${#configs[@]} -gt 0 ] || configs=(alpha1 alpha05 alpha01 classic v0_classic)
+[ ${#configs[@]} -gt 0 ] || configs=(classic_actor3e4 classic alpha1 alpha05 alpha01 alpha05_actor3e4 v0_classic)
 
 jobs=()
 for config in "${configs[@]}"; do

@@ -14,11 +14,14 @@ read -r -a seeds <<< "${SEEDS:-0 1 2}"
 read -r -a cores <<< "${CORES:-0 1}"
 mkdir -p "$out"
 
-# The hyperparameters of zoo_configs/maddpg.yml's uav_coverage_cpu_v1 entry (benchmarks/run_stability.sh passes the
-# same ones, so its runs with position_channel 1 and max_grad_norm 1 are this script's alpha1 runs).
-v1_algo='"learning_starts": 2000, "train_freq": 1, "gamma": 0.95, "tau": 0.01, "learning_rate": 0.001,
-  "actor_learning_rate": 0.0001, "critic_warmup_steps": 2000, "policy_delay": 2, "target_policy_noise": 0.2,
+# The settings of zoo_configs/maddpg.yml's uav_coverage_cpu_v1 entry but the actor learning rate and the critic's
+# quantiles (the entry: actor learning rate 3e-4, one quantile, i.e. classic_actor3e4 below).
+# benchmarks/run_stability.sh with max_grad_norm 1 and position_channel 1 passes the same as alpha1.
+v1_common='"learning_starts": 2000, "train_freq": 1, "gamma": 0.95, "tau": 0.01, "learning_rate": 0.001,
+  "critic_warmup_steps": 2000, "policy_delay": 2, "target_policy_noise": 0.2,
   "actor_reg": 0.001, "buffer_size": 100000, "batch_size": 64, "max_grad_norm": 1.0'
+v1_algo="$v1_common, \"actor_learning_rate\": 0.0001"
+fast_actor="$v1_common, \"actor_learning_rate\": 0.0003"
 encoder='"features_extractor_kwargs": {"padding": 1, "coord_channels": true, "batch_norm_eps": 0.001, "position_channel": 1}'
 
 declare -A ENV ALGO POLICY
@@ -27,7 +30,6 @@ ENV[alpha1]=uav_coverage_cpu_v1;  ALGO[alpha1]="{$v1_algo, \"cvar_alpha\": 1.0}"
 ENV[alpha01]=uav_coverage_cpu_v1; ALGO[alpha01]="{$v1_algo, \"cvar_alpha\": 0.1}"; POLICY[alpha01]="{\"n_quantiles\": 25, $encoder}"
 ENV[classic]=uav_coverage_cpu_v1; ALGO[classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[classic]="{\"n_quantiles\": 1, $encoder}"
 # The same with a faster actor (actor learning rate 3e-4 instead of 1e-4: zoo_configs/maddpg.yml's v1 entries)
-fast_actor=${v1_algo/\"actor_learning_rate\": 0.0001/\"actor_learning_rate\": 0.0003}
 ENV[classic_actor3e4]=uav_coverage_cpu_v1; ALGO[classic_actor3e4]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[classic_actor3e4]="{\"n_quantiles\": 1, $encoder}"
 ENV[alpha05_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha05_actor3e4]="{$fast_actor, \"cvar_alpha\": 0.5}"; POLICY[alpha05_actor3e4]="{\"n_quantiles\": 25, $encoder}"
 # v0 (the report's task at 1 pixel per cell: polar actions, refused walls, the report's reward) with the same settings

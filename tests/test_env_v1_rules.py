@@ -294,3 +294,66 @@ def test_hover_deadband_turns_short_moves_into_hovering():
     for bad in (1.0, -0.1, float("nan")):
         with pytest.raises(ValueError, match="hover_deadband"):
             UAVCoverageCore(hover_deadband=bad)
+
+
+def test_exact_position_mark_is_an_antialiased_cell_sized_square():
+    # L = S = 16 (one pixel per cell), full batteries (value 255). U0 at (2.25, 3.5): the square spans x in
+    # [1.75, 2.75] (columns 1 and 2 covered 0.25 and 0.75) and y in [3, 4] (row 15 - 3 = 12 only).
+    # U1 at (0.25, 15.9): x in [-0.25, 0.75] is cut by the wall (column 0 covered 0.75), y in [15.4, 16.4] (row 0
+    # covered 0.6).
+    kwargs = dict(map_size=16, obs_size=16, n_uavs=2, start=[[2.25, 3.5], [0.25, 15.9]])
+    core = UAVCoverageCore(**kwargs, position_mark="exact")
+    obs = core.reset(seed=0)
+    mark = obs[0, 1]
+    assert {tuple(p) for p in np.argwhere(mark)} == {(12, 1), (12, 2)}
+    assert mark[12, 1] == 64 and mark[12, 2] == 191  # round(255 * 0.25) and round(255 * 0.75)
+    assert {tuple(p) for p in np.argwhere(obs[1, 1])} == {(0, 0)}
+    assert obs[1, 1][0, 0] == 115  # round(255 * 0.75 * 0.6) = round(114.75)
+    # Channels 0 and 2 are those of the cell mark; the state shows both squares (each agent's own mark)
+    plain = UAVCoverageCore(**kwargs).reset(seed=0)
+    np.testing.assert_array_equal(obs[:, [0, 2]], plain[:, [0, 2]])
+    np.testing.assert_array_equal(core.state()[1], np.maximum(obs[0, 1], obs[1, 1]))
+    # The cell mark (the report's, v0's and v1's default) fills the cell's block
+    assert {tuple(p) for p in np.argwhere(plain[0, 1])} == {(12, 2)}
+
+
+def test_exact_position_mark_centre_of_mass_is_the_position():
+    # At 5 pixels per cell the square covers up to 6 x 6 pixels; away from the walls its weights sum to s^2 = 25
+    # and their centre of mass (column, row) is (x s - 1/2, S - 1/2 - y s), to the uint8 rounding.
+    rng = np.random.default_rng(3)
+    start = rng.uniform(0.5, 15.5, size=(6, 2))
+    core = UAVCoverageCore(map_size=16, obs_size=80, n_uavs=6, start=start, position_mark="exact")
+    obs = core.reset(seed=0).astype(np.float64)
+    for agent in range(6):
+        mark = obs[agent, 1]
+        mass = mark.sum()
+        assert mass == pytest.approx(255 * 25, rel=0.01)
+        column = (mark.sum(axis=0) @ np.arange(80)) / mass
+        row = (mark.sum(axis=1) @ np.arange(80)) / mass
+        assert column == pytest.approx(start[agent, 0] * 5 - 0.5, abs=0.02)
+        assert row == pytest.approx(80 - 0.5 - start[agent, 1] * 5, abs=0.02)
+    # A depleted UAV has no mark
+    core.energy[2] = 0.0
+    core.active[2] = False
+    assert not core.observations()[2, 1].any()
+
+
+def test_exact_position_mark_env_api_and_validation():
+    env = uav_coverage_v1.parallel_env(obs_size=32, max_cycles=20, position_mark="exact")
+    parallel_api_test(env, num_cycles=25)
+    assert uav_coverage_v0.parallel_env().core.position_mark == "cell"
+    for bad in ("subpixel", 1):
+        with pytest.raises(ValueError, match="position_mark"):
+            UAVCoverageCore(position_mark=bad)
+
+
+def test_where_in_its_cell_a_uav_hovers_changes_what_it_covers():
+    # Why the exact mark matters (docs/environment.md): on the 16 x 16 lattice with R0 = 3, a disc on a cell's
+    # centre covers 32 PoIs, one on a cell's corner (a lattice point) 29, though both UAVs are in cell (7, 7).
+    counts = []
+    for point in ([7.5, 7.5], [7.0, 7.0]):
+        core = UAVCoverageCore(map_size=16, obs_size=16, n_uavs=1, start=[point])
+        core.reset(seed=0)
+        core.step(np.array([[0.0, 0.0]]))  # polar, rho = 0: hover
+        counts.append(round(core.coverage * 256))
+    assert counts == [32, 29]

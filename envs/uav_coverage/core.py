@@ -35,6 +35,7 @@ _MIN_POSITIVE = 1e-12
 ACTION_MODES = ("polar", "cartesian", "waypoint")
 WALL_MODES = ("refuse", "clip")
 REWARD_MODES = ("report", "coverage", "marginal")
+POSITION_MARKS = ("cell", "exact")
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -226,6 +227,12 @@ class UAVCoverageCore:
         UAV can learn from its links. The state keeps its three channels (it already shows every UAV).
     :param hover_deadband: in [0, 1): a commanded move shorter than this fraction of l_max is not made and the UAV
         hovers (rho = 0, energy E_h), in every action mode; 0 (the report's rule) keeps every move
+    :param position_mark: how a UAV is drawn on channel 1 of the observations and of the state: ``"cell"`` (the
+        report's: its cell's block, so the image tells only which cell it is in) or ``"exact"`` (a square of one
+        cell's size centred on its exact position, anti-aliased: each pixel holds the value times the fraction of it
+        the square covers, so the mark's centre of mass is the position itself, to the uint8 rounding). Which PoIs a
+        disc of radius R0 covers depends on where in its cell the UAV is (29 to 32 lattice PoIs at R0 = 3), so a
+        policy that only knows the cell cannot place its disc well
     """
 
     def __init__(
@@ -257,6 +264,7 @@ class UAVCoverageCore:
         energy_coef: float = 0.5,
         teammate_channel: bool = False,
         hover_deadband: float = 0.0,
+        position_mark: str = "cell",
     ) -> None:
         # --- configuration, validated where it enters -------------------------------------------------------------
         self.map_size = _check_int("map_size", map_size, 1)
@@ -292,6 +300,7 @@ class UAVCoverageCore:
             raise TypeError(f"teammate_channel must be a bool, got {teammate_channel!r}")
         self.teammate_channel = bool(teammate_channel)
         self.hover_deadband = _check_real("hover_deadband", hover_deadband, low_inclusive=True, high=1.0)
+        self.position_mark = _check_choice("position_mark", position_mark, POSITION_MARKS)
         #: Channels of an agent's observation: 3, or 4 with the teammate channel.
         self.n_obs_channels = 4 if self.teammate_channel else 3
 
@@ -685,8 +694,11 @@ class UAVCoverageCore:
         rows, cols = self.cells_of(self.positions)
         values = self._self_values()
         blocks = self._blocks(obs)
-        # Advanced indices split by slices: the selection has shape (N, s, s), one block per agent.
-        blocks[self._arange_n, 1, rows, :, cols, :] = values[:, None, None]
+        if self.position_mark == "exact":
+            obs[:, 1] = self._exact_marks(self.positions, values)
+        else:
+            # Advanced indices split by slices: the selection has shape (N, s, s), one block per agent.
+            blocks[self._arange_n, 1, rows, :, cols, :] = values[:, None, None]
         if self.teammate_channel:
             observer, seen = np.nonzero(self._linked())
             grid = np.zeros((self.n_uavs, self.map_size, self.map_size), dtype=np.uint8)
@@ -702,11 +714,40 @@ class UAVCoverageCore:
         :return: (3, S, S) uint8 (maximum value where UAVs share a cell)
         """
         image = self._template.copy()
+        if self.position_mark == "exact":
+            image[1] = self._exact_marks(self.positions, self._self_values()).max(axis=0)
+            return image
         rows, cols = self.cells_of(self.positions)
         grid = np.zeros((self.map_size, self.map_size), dtype=np.uint8)
         np.maximum.at(grid, (rows, cols), self._self_values())
         self._blocks(image[1])[...] = grid[:, None, :, None]
         return image
+
+    def _exact_marks(self, points: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """
+        Anti-aliased marks of ``position_mark="exact"``: a square of one cell's size centred on each point.
+
+        In pixel units (x s, y s) the square spans [x s - s/2, x s + s/2] on each axis; a pixel's weight is the
+        product of its overlaps with the square on the two axes, in [0, 1], and the mark is round(value x weight).
+        Inside the image the weights sum to s^2 and their centre of mass, in pixel indices, is (x s - 1/2) along the
+        columns and (S - 1/2 - y s) along the rows; within half a cell of a wall the square is cut, and the centre
+        of mass still moves monotonically with the point.
+
+        :param points: (M, 2) map coordinates
+        :param values: (M,) mark values (uint8 range)
+        :return: (M, S, S) uint8, row 0 at the top (the largest y), as every channel
+        """
+        half, size = self.block / 2.0, self.obs_size
+        edges = np.arange(size + 1, dtype=np.float64)
+
+        def overlaps(centres: np.ndarray) -> np.ndarray:
+            low, high = centres[:, None] - half, centres[:, None] + half
+            return np.clip(np.minimum(edges[None, 1:], high) - np.maximum(edges[None, :-1], low), 0.0, 1.0)
+
+        by_col = overlaps(points[:, 0] * self.block)  # (M, S), column j covers x s in [j, j + 1]
+        by_row = overlaps(points[:, 1] * self.block)[:, ::-1]  # row r covers y s in [S - 1 - r, S - r]
+        marks = values.astype(np.float64)[:, None, None] * by_row[:, :, None] * by_col[:, None, :]
+        return np.rint(marks).astype(np.uint8)
 
     # -----------------------------------------------------------------------------------------------------------------
     # Helpers for the wrapper, rendering and evaluation

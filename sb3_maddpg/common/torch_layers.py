@@ -41,7 +41,9 @@ class ReportCNN(BaseFeaturesExtractor):
         bounds this, through ``policy_kwargs=dict(features_extractor_kwargs=dict(batch_norm_eps=1e-3))``
     :param position_channel: index of an input channel that marks one object (the UAV's own cell, channel 1 of the
         UAV env), or None. When set, three numbers are appended to the features: the channel's centre of mass
-        (column, row in [0, 1], 0 where the channel is empty) and its maximum (the UAV env's energy level). The
+        (column, row in [0, 1], 0 where the channel is empty) and its maximum (the UAV env's energy level; with the
+        env's ``position_mark="exact"`` the centre of mass is the exact position and the maximum is the energy level
+        times the largest share of a pixel the mark covers, between 1/4 and 1 at one pixel per cell). The
         networks then get the position exactly, where otherwise they must decode it from three stride-2 convolutions
     """
 

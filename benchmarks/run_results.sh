@@ -24,7 +24,7 @@ v1_algo="$v1_common, \"actor_learning_rate\": 0.0001"
 fast_actor="$v1_common, \"actor_learning_rate\": 0.0003"
 encoder='"features_extractor_kwargs": {"padding": 1, "coord_channels": true, "batch_norm_eps": 0.001, "position_channel": 1}'
 
-declare -A ENV ALGO POLICY
+declare -A ENV ALGO POLICY ENV_KWARGS
 ENV[alpha05]=uav_coverage_cpu_v1; ALGO[alpha05]="{$v1_algo, \"cvar_alpha\": 0.5}"; POLICY[alpha05]="{\"n_quantiles\": 25, $encoder}"
 ENV[alpha1]=uav_coverage_cpu_v1;  ALGO[alpha1]="{$v1_algo, \"cvar_alpha\": 1.0}";  POLICY[alpha1]="{\"n_quantiles\": 25, $encoder}"
 ENV[alpha01]=uav_coverage_cpu_v1; ALGO[alpha01]="{$v1_algo, \"cvar_alpha\": 0.1}"; POLICY[alpha01]="{\"n_quantiles\": 25, $encoder}"
@@ -32,11 +32,15 @@ ENV[classic]=uav_coverage_cpu_v1; ALGO[classic]="{$v1_algo, \"cvar_alpha\": 1.0}
 # The same with a faster actor (actor learning rate 3e-4 instead of 1e-4: zoo_configs/maddpg.yml's v1 entries)
 ENV[classic_actor3e4]=uav_coverage_cpu_v1; ALGO[classic_actor3e4]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[classic_actor3e4]="{\"n_quantiles\": 1, $encoder}"
 ENV[alpha05_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha05_actor3e4]="{$fast_actor, \"cvar_alpha\": 0.5}"; POLICY[alpha05_actor3e4]="{\"n_quantiles\": 25, $encoder}"
+# The faster actor's settings on v1 with the exact position mark (position_mark="exact": each UAV drawn at its exact
+# position instead of on its cell's block)
+ENV[exact_mark]=uav_coverage_cpu_v1; ALGO[exact_mark]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[exact_mark]="{\"n_quantiles\": 1, $encoder}"
+ENV_KWARGS[exact_mark]='"position_mark": "exact"'
 # v0 (the report's task at 1 pixel per cell: polar actions, refused walls, the report's reward) with the same settings
 ENV[v0_classic]=uav_coverage_fast_v0; ALGO[v0_classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[v0_classic]="{\"n_quantiles\": 1, $encoder}"
 
 configs=("$@")
-[ ${#configs[@]} -gt 0 ] || configs=(classic_actor3e4 classic alpha1 alpha05 alpha01 alpha05_actor3e4 v0_classic)
+[ ${#configs[@]} -gt 0 ] || configs=(classic_actor3e4 classic alpha1 alpha05 alpha01 alpha05_actor3e4 exact_mark v0_classic)
 
 jobs=()
 for config in "${configs[@]}"; do
@@ -46,7 +50,7 @@ done
 
 run() {  # run CONFIG SEED CORE
   local config=$1 seed=$2 core=$3
-  taskset -c "$core" "$py" benchmarks/uav_learning.py --env "${ENV[$config]}" --env-kwargs '{"max_cycles": 300}' \
+  taskset -c "$core" "$py" benchmarks/uav_learning.py --env "${ENV[$config]}" --env-kwargs "{\"max_cycles\": 300${ENV_KWARGS[$config]:+, ${ENV_KWARGS[$config]}}}" \
     --algo-kwargs "${ALGO[$config]}" --policy-kwargs "${POLICY[$config]}" --timesteps "$timesteps" \
     --eval-every 4000 --seed "$seed" --save "$out/${config}_s${seed}.zip" --out "$out/${config}_s${seed}.jsonl" \
     > "$out/${config}_s${seed}.log" 2>&1

@@ -4,7 +4,8 @@
 #   bash benchmarks/run_stability.sh NAME SEED CORE 'ALGO_JSON_EXTRA' 'ENCODER_JSON_EXTRA'
 # e.g. bash benchmarks/run_stability.sh bn_eps 0 0 '' '"batch_norm_eps": 0.001'
 # ENV_EXTRA adds env parameters (e.g. ENV_EXTRA='"action_mode": "waypoint"'), TIMESTEPS sets the budget,
-# N_QUANTILES the critic's quantiles (default 25; 1 with cvar_alpha 1 is classic MADDPG).
+# N_QUANTILES the critic's quantiles (default 25; 1 with cvar_alpha 1 is classic MADDPG), NOISE the exploration
+# noise's DecayingGaussianNoise arguments (e.g. NOISE='"final_sigma": 0.2, "decay": 0.9999').
 set -euo pipefail
 cd "$(dirname "$0")/.."
 py="${PYTHON:-.venv/bin/python}"
@@ -21,5 +22,5 @@ env_kwargs='"max_cycles": 300'
 [ -n "${ENV_EXTRA:-}" ] && env_kwargs="$env_kwargs, $ENV_EXTRA"
 taskset -c "$core" "$py" benchmarks/uav_learning.py --env uav_coverage_cpu_v1 --env-kwargs "{$env_kwargs}" \
   --algo-kwargs "{$v1_algo}" --policy-kwargs "{\"n_quantiles\": ${N_QUANTILES:-25}, \"features_extractor_kwargs\": {$encoder}}" \
-  --timesteps "${TIMESTEPS:-32000}" --eval-every 4000 --seed "$seed" --save "$out/${name}_s${seed}.zip" \
+  ${NOISE:+--noise-kwargs "{$NOISE}"} --timesteps "${TIMESTEPS:-32000}" --eval-every 4000 --seed "$seed" --save "$out/${name}_s${seed}.zip" \
   --out "$out/${name}_s${seed}.jsonl" --tensorboard-log "$out/tb_${name}_s${seed}" > "$out/${name}_s${seed}.log" 2>&1

@@ -23,6 +23,7 @@ import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
+from sb3_maddpg.common.noise import DecayingGaussianNoise
 from sb3_maddpg.evaluation.baselines import ModelController
 from sb3_maddpg.evaluation.evaluate import METRICS, evaluate_controllers
 from sb3_maddpg.zoo.registry import make_multiagent_env
@@ -84,6 +85,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--env-kwargs", type=json.loads, default={}, help="JSON dict of env parameters")
     parser.add_argument("--algo-kwargs", type=json.loads, default={}, help="JSON dict of MADDPG arguments")
     parser.add_argument("--policy-kwargs", type=json.loads, default={}, help="JSON dict of policy arguments")
+    parser.add_argument(
+        "--noise-kwargs",
+        type=json.loads,
+        default=None,
+        help="JSON dict of DecayingGaussianNoise arguments (sigma, final_sigma, decay); default MADDPG's own noise",
+    )
     parser.add_argument("--policy", default="CnnPolicy")
     parser.add_argument("--timesteps", type=int, default=60_000)
     parser.add_argument("--n-envs", type=int, default=1)
@@ -105,6 +112,7 @@ def main(argv: list[str] | None = None) -> None:
             env_kwargs=args.env_kwargs,
             algo_kwargs=args.algo_kwargs,
             policy_kwargs=args.policy_kwargs,
+            **({"noise_kwargs": args.noise_kwargs} if args.noise_kwargs is not None else {}),
             **record,
         )
         line = json.dumps(record)
@@ -121,9 +129,13 @@ def main(argv: list[str] | None = None) -> None:
     vec_env = make_multiagent_vec_env(
         lambda **kw: make_multiagent_env(args.env, **kw), n_envs=args.n_envs, seed=args.seed, env_kwargs=args.env_kwargs
     )
+    action_noise = None
+    if args.noise_kwargs is not None:
+        action_noise = DecayingGaussianNoise(np.zeros(vec_env.action_space.shape), **args.noise_kwargs)
     model = MADDPG(
         args.policy,
         vec_env,
+        action_noise=action_noise,
         seed=args.seed,
         policy_kwargs=policy_kwargs,
         tensorboard_log=args.tensorboard_log,

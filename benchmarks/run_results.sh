@@ -32,6 +32,7 @@ ENV[classic]=uav_coverage_cpu_v1; ALGO[classic]="{$v1_algo, \"cvar_alpha\": 1.0}
 # The same with a faster actor (actor learning rate 3e-4 instead of 1e-4: zoo_configs/maddpg.yml's v1 entries)
 ENV[classic_actor3e4]=uav_coverage_cpu_v1; ALGO[classic_actor3e4]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[classic_actor3e4]="{\"n_quantiles\": 1, $encoder}"
 ENV[alpha05_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha05_actor3e4]="{$fast_actor, \"cvar_alpha\": 0.5}"; POLICY[alpha05_actor3e4]="{\"n_quantiles\": 25, $encoder}"
+ENV[alpha01_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha01_actor3e4]="{$fast_actor, \"cvar_alpha\": 0.1}"; POLICY[alpha01_actor3e4]="{\"n_quantiles\": 25, $encoder}"
 # The faster actor's settings on v1 with the exact position mark (position_mark="exact": each UAV drawn at its exact
 # position instead of on its cell's block)
 ENV[exact_mark]=uav_coverage_cpu_v1; ALGO[exact_mark]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[exact_mark]="{\"n_quantiles\": 1, $encoder}"
@@ -40,7 +41,7 @@ ENV_KWARGS[exact_mark]='"position_mark": "exact"'
 ENV[v0_classic]=uav_coverage_fast_v0; ALGO[v0_classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[v0_classic]="{\"n_quantiles\": 1, $encoder}"
 
 configs=("$@")
-[ ${#configs[@]} -gt 0 ] || configs=(classic_actor3e4 classic alpha1 alpha05 alpha01 alpha05_actor3e4 exact_mark v0_classic)
+[ ${#configs[@]} -gt 0 ] || configs=(classic_actor3e4 classic alpha1 alpha05 alpha01 alpha05_actor3e4 alpha01_actor3e4 exact_mark v0_classic)
 
 jobs=()
 for config in "${configs[@]}"; do

@@ -273,6 +273,20 @@ def test_marginal_reward_credits_only_the_pois_no_teammate_covers():
     np.testing.assert_allclose(rewards, [-0.25, 0.5 - 0.25])
 
 
+def test_team_reward_credits_every_uav_with_the_teams_weighted_coverage():
+    # L = 4, R0 = 1, N = 2, K = 3: P0 (1, 1) under both UAVs, P1 (3, 1) under U1 only, P2 (3, 3) under neither.
+    core = two_uav_core(pois=[[1.0, 1.0], [3.0, 1.0], [3.0, 3.0]], start=[[1.0, 1.0], [2.0, 1.0]], reward_mode="team")
+    # Step 1, c_0 = 0: P0 and P1 covered, worth 1 each, the overlap counted once: (N / K) * 2 = 4 / 3 for both UAVs,
+    # minus each UAV's own energy term 0.5 * E_h / (eta l_max) = 0.25.
+    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
+    np.testing.assert_allclose(rewards, [4 / 3 - 0.25, 4 / 3 - 0.25])
+    assert core.last_shared_reward == pytest.approx(4 / 3)
+    # Step 2, c_1 = (1, 1, 0): P0 and P1 are worth 1 - 0.5 = 0.5 each: (2 / 3) * 1 = 2 / 3. U0 moves right by
+    # a = 0.75 -> dx = 0.5 l_max: it pays its own extra energy (eta 0.5 + E_h 0.5 = 0.75, term 0.375), U1 does not.
+    _, rewards, _, _ = core.step(np.array([[0.75, 0.5], [0.5, 0.5]]))
+    np.testing.assert_allclose(rewards, [2 / 3 - 0.375, 2 / 3 - 0.25])
+
+
 def test_hover_deadband_turns_short_moves_into_hovering():
     core = scenario(hover_deadband=0.2)  # l_max = 1
     start = core.positions.copy()

@@ -34,7 +34,7 @@ _MIN_POSITIVE = 1e-12
 #: The rules a v1 env may switch; the first of each is the report's (``uav_coverage_v0``).
 ACTION_MODES = ("polar", "cartesian", "waypoint")
 WALL_MODES = ("refuse", "clip")
-REWARD_MODES = ("report", "coverage", "marginal")
+REWARD_MODES = ("report", "coverage", "marginal", "team")
 POSITION_MARKS = ("cell", "exact")
 
 
@@ -218,10 +218,14 @@ class UAVCoverageCore:
         covered this step is worth ``1 - fairness_coef * c_{t-1}(k)``, split equally between the UAVs covering it and
         scaled by N / K, so the agents' rewards sum to N times the team's weighted coverage fraction; minus
         ``energy_coef`` times the UAV's own energy this step / (eta l_max)) or ``"marginal"`` (as ``"coverage"``,
-        but each UAV is credited only with the PoIs that no other UAV covers: the difference reward)
-    :param fairness_coef: with ``reward_mode="coverage"`` or ``"marginal"``, how much less a PoI is worth the more it
-        has been covered so far, in [0, 1] (0: every covered PoI counts 1; 1: only the uncovered share of its history counts)
-    :param energy_coef: with ``reward_mode="coverage"`` or ``"marginal"``, the weight of the UAV's own energy (>= 0)
+        but each UAV is credited only with the PoIs that no other UAV covers: the difference reward) or ``"team"`` (as
+        ``"coverage"``, but every UAV is credited with the whole team's weighted coverage, the sum of the
+        ``"coverage"`` credits, so that moving off a teammate's disc pays both; energy and penalties stay its own)
+    :param fairness_coef: with ``reward_mode="coverage"``, ``"marginal"`` or ``"team"``, how much less a PoI is worth
+        the more it has been covered so far, in [0, 1] (0: every covered PoI counts 1; 1: only the uncovered share of
+        its history counts)
+    :param energy_coef: with ``reward_mode="coverage"``, ``"marginal"`` or ``"team"``, the weight of the UAV's own
+        energy (>= 0)
     :param teammate_channel: if True, observations get a fourth channel showing the active teammates within radio
         range R (``comm_range``) of the agent, each on its cell block with its channel-1 value; what a decentralised
         UAV can learn from its links. The state keeps its three channels (it already shows every UAV).
@@ -642,16 +646,18 @@ class UAVCoverageCore:
 
     def _coverage_credit(self, in_range: np.ndarray, active: np.ndarray) -> np.ndarray:
         """
-        Each UAV's credit for this step's weighted coverage (``reward_mode="coverage"`` or ``"marginal"``).
+        Each UAV's credit for this step's weighted coverage (``reward_mode="coverage"``, ``"marginal"`` or ``"team"``).
 
         ``"coverage"`` splits each covered PoI's worth equally between the UAVs covering it. ``"marginal"`` is the
         difference reward: a UAV is credited only with the PoIs no other UAV covers, the coverage the team would
-        lose without it, so a UAV whose disc overlaps a teammate's gains nothing on the overlap.
+        lose without it, so a UAV whose disc overlaps a teammate's gains nothing on the overlap. ``"team"`` credits
+        every UAV with the sum of the ``"coverage"`` credits: the team's weighted coverage, N / K per PoI covered.
 
         :param in_range: (N, K) bool, PoI k within R0 of UAV i after the move
         :param active: (N,) bool, the UAVs active this step
         :return: (N,) credit: (N / K) sum_k [i covers k] (1 - fairness_coef c_{t-1}(k)) / (number of UAVs covering k)
-            with ``"coverage"``; the same sum over the PoIs that only UAV i covers with ``"marginal"``
+            with ``"coverage"``; the same sum over the PoIs that only UAV i covers with ``"marginal"``; with ``"team"``
+            (N / K) sum_k [some UAV covers k] (1 - fairness_coef c_{t-1}(k)) for every UAV
         """
         covering = in_range & active[:, None]
         n_covering = covering.sum(axis=0)
@@ -659,6 +665,9 @@ class UAVCoverageCore:
         weight = 1.0 - self.fairness_coef * self.coverage_scores
         if self.reward_mode == "marginal":
             weight = weight * (n_covering == 1)
+        elif self.reward_mode == "team":
+            team_credit = float(weight @ (n_covering > 0)) * (self.n_uavs / len(weight))
+            return np.full(self.n_uavs, team_credit)
         else:
             weight = weight / np.maximum(n_covering, 1)
         return covering @ weight * (self.n_uavs / len(weight))

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 import torch as th
+from rl_zoo3.utils import linear_schedule
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
@@ -83,7 +84,9 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument("--env", default="uav_coverage_cpu_v1", help="env id of sb3_maddpg's registry")
     parser.add_argument("--env-kwargs", type=json.loads, default={}, help="JSON dict of env parameters")
-    parser.add_argument("--algo-kwargs", type=json.loads, default={}, help="JSON dict of MADDPG arguments")
+    parser.add_argument(
+        "--algo-kwargs", type=json.loads, default={}, help="JSON dict of MADDPG arguments; a learning rate \"lin_X\" decays linearly from X to 0"
+    )
     parser.add_argument("--policy-kwargs", type=json.loads, default={}, help="JSON dict of policy arguments")
     parser.add_argument(
         "--noise-kwargs",
@@ -129,6 +132,11 @@ def main(argv: list[str] | None = None) -> None:
     vec_env = make_multiagent_vec_env(
         lambda **kw: make_multiagent_env(args.env, **kw), n_envs=args.n_envs, seed=args.seed, env_kwargs=args.env_kwargs
     )
+    # "lin_<value>" learning rates decay linearly to 0 over the run, as in RL Zoo's YAML files
+    algo_kwargs = {
+        key: linear_schedule(value.split("_", 1)[1]) if isinstance(value, str) and value.startswith("lin_") else value
+        for key, value in args.algo_kwargs.items()
+    }
     action_noise = None
     if args.noise_kwargs is not None:
         action_noise = DecayingGaussianNoise(np.zeros(vec_env.action_space.shape), **args.noise_kwargs)
@@ -139,7 +147,7 @@ def main(argv: list[str] | None = None) -> None:
         seed=args.seed,
         policy_kwargs=policy_kwargs,
         tensorboard_log=args.tensorboard_log,
-        **args.algo_kwargs,
+        **algo_kwargs,
     )
     curve = LearningCurve(args.env, args.env_kwargs, args.eval_every, args.curve_episodes, emit)
     start = time.perf_counter()

@@ -287,6 +287,35 @@ def test_team_reward_credits_every_uav_with_the_teams_weighted_coverage():
     np.testing.assert_allclose(rewards, [2 / 3 - 0.375, 2 / 3 - 0.25])
 
 
+def test_soft_disc_edge_credits_covers_in_proportion():
+    # L = 4, R0 = 1, edge w = 1: a PoI at distance d counts clip((1.5 - d) / 1, 0, 1). N = 2, K = 2, both hovering.
+    # U0 at (1, 1), U1 at (2.25, 1). P0 (1, 1): d0 = 0 (cover 1), d1 = 1.25 (cover 0.25). P1 (3, 1): d0 = 2 (0),
+    # d1 = 0.75 (0.75). Worths 1 (c_0 = 0), N / K = 1, energy term 0.25 each.
+    start = [[1.0, 1.0], [2.25, 1.0]]
+    pois = [[1.0, 1.0], [3.0, 1.0]]
+    # Split: P0's largest cover 1, shared 1 : 0.25 -> 0.8 and 0.2; P1 all U1's at 0.75.
+    core = two_uav_core(pois=pois, start=start, coverage_edge=1.0)
+    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
+    np.testing.assert_allclose(rewards, [0.8 - 0.25, 0.2 + 0.75 - 0.25])
+    # The metrics keep the hard disc: P0 (U0 at d 0) and P1 (U1 at d 0.75 <= R0) are both covered
+    assert core.coverage == pytest.approx(1.0)
+    # Marginal: U0 gets 1 * (1 - 0.25) = 0.75 of P0; U1 gets 0.25 * (1 - 1) = 0 of P0 and 0.75 of P1.
+    core = two_uav_core(pois=pois, start=start, coverage_edge=1.0, reward_mode="marginal")
+    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
+    np.testing.assert_allclose(rewards, [0.75 - 0.25, 0.75 - 0.25])
+    # Team: largest covers 1 + 0.75 for both.
+    core = two_uav_core(pois=pois, start=start, coverage_edge=1.0, reward_mode="team")
+    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
+    np.testing.assert_allclose(rewards, [1.75 - 0.25, 1.75 - 0.25])
+    # A very narrow edge is the hard disc on these distances (no PoI within w / 2 of R0)
+    hard = two_uav_core(pois=pois, start=start)
+    narrow = two_uav_core(pois=pois, start=start, coverage_edge=0.1)
+    np.testing.assert_allclose(narrow.step(np.full((2, 2), 0.5))[1], hard.step(np.full((2, 2), 0.5))[1])
+    for bad in (-0.5, 2.5, float("nan")):
+        with pytest.raises(ValueError, match="coverage_edge"):
+            UAVCoverageCore(coverage_range=1.0, comm_range=2.0, coverage_edge=bad)
+
+
 def test_hover_deadband_turns_short_moves_into_hovering():
     core = scenario(hover_deadband=0.2)  # l_max = 1
     start = core.positions.copy()

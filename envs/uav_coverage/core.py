@@ -237,6 +237,10 @@ class UAVCoverageCore:
         the square covers, so the mark's centre of mass is the position itself, to the uint8 rounding). Which PoIs a
         disc of radius R0 covers depends on where in its cell the UAV is (29 to 32 lattice PoIs at R0 = 3), so a
         policy that only knows the cell cannot place its disc well
+    :param coverage_edge: width w >= 0 of a soft disc edge in the coverage rewards (``reward_mode`` other than
+        ``"report"``): a PoI at distance d from a UAV counts clip((R0 + w / 2 - d) / w, 0, 1) of a cover in the UAV's
+        credit, so the credit changes continuously with the position instead of by whole PoIs. 0 (the default) is the
+        hard disc of the metrics; the metrics (c_t, f_t, ...) always use the hard disc
     """
 
     def __init__(
@@ -269,6 +273,7 @@ class UAVCoverageCore:
         teammate_channel: bool = False,
         hover_deadband: float = 0.0,
         position_mark: str = "cell",
+        coverage_edge: float = 0.0,
     ) -> None:
         # --- configuration, validated where it enters -------------------------------------------------------------
         self.map_size = _check_int("map_size", map_size, 1)
@@ -305,6 +310,11 @@ class UAVCoverageCore:
         self.teammate_channel = bool(teammate_channel)
         self.hover_deadband = _check_real("hover_deadband", hover_deadband, low_inclusive=True, high=1.0)
         self.position_mark = _check_choice("position_mark", position_mark, POSITION_MARKS)
+        self.coverage_edge = _check_real("coverage_edge", coverage_edge, low_inclusive=True)
+        if self.coverage_edge > 2.0 * self.coverage_range:
+            raise ValueError(
+                f"coverage_edge must lie in [0, 2 coverage_range] = [0, {2.0 * self.coverage_range}], got {coverage_edge!r}"
+            )
         #: Channels of an agent's observation: 3, or 4 with the teammate channel.
         self.n_obs_channels = 4 if self.teammate_channel else 3
 
@@ -551,7 +561,7 @@ class UAVCoverageCore:
         self.visits += covered
         # Weights of the coverage reward use c_{t-1}(k), read before this step's update.
         if self.reward_mode != "report":
-            credit = self._coverage_credit(sq_dist <= self.coverage_range**2, active)
+            credit = self._coverage_credit(self._reward_cover(sq_dist), active)
         np.divide(self.visits, self.t, out=self.coverage_scores)
         score_sum = float(self.coverage_scores.sum())
 
@@ -644,6 +654,19 @@ class UAVCoverageCore:
         still = rho < self.hover_deadband
         return np.where(still[:, None], 0.0, displacement), np.where(still, 0.0, rho)
 
+    def _reward_cover(self, sq_dist: np.ndarray) -> np.ndarray:
+        """
+        How much of a cover each (UAV, PoI) pair counts for in the coverage rewards.
+
+        :param sq_dist: (N, K) squared distances after the move
+        :return: (N, K) bool ``d <= R0`` (hard disc, ``coverage_edge`` 0), or float in [0, 1] with a soft edge:
+            clip((R0 + w / 2 - d) / w, 0, 1)
+        """
+        if self.coverage_edge == 0.0:
+            return sq_dist <= self.coverage_range**2
+        half = 0.5 * self.coverage_edge
+        return np.clip((self.coverage_range + half - np.sqrt(sq_dist)) / self.coverage_edge, 0.0, 1.0)
+
     def _coverage_credit(self, in_range: np.ndarray, active: np.ndarray) -> np.ndarray:
         """
         Each UAV's credit for this step's weighted coverage (``reward_mode="coverage"``, ``"marginal"`` or ``"team"``).
@@ -653,16 +676,21 @@ class UAVCoverageCore:
         lose without it, so a UAV whose disc overlaps a teammate's gains nothing on the overlap. ``"team"`` credits
         every UAV with the sum of the ``"coverage"`` credits: the team's weighted coverage, N / K per PoI covered.
 
-        :param in_range: (N, K) bool, PoI k within R0 of UAV i after the move
+        :param in_range: (N, K) bool, PoI k within R0 of UAV i after the move, or with a soft disc edge
+            (``coverage_edge`` > 0) float in [0, 1], how much UAV i covers PoI k; then a PoI's worth counts by its
+            largest cover, split in proportion to the UAVs' covers, and the marginal rule credits UAV i with its
+            cover times the product of the others' uncovers (each reduces to the hard rule on 0/1 covers)
         :param active: (N,) bool, the UAVs active this step
         :return: (N,) credit: (N / K) sum_k [i covers k] (1 - fairness_coef c_{t-1}(k)) / (number of UAVs covering k)
             with ``"coverage"``; the same sum over the PoIs that only UAV i covers with ``"marginal"``; with ``"team"``
             (N / K) sum_k [some UAV covers k] (1 - fairness_coef c_{t-1}(k)) for every UAV
         """
-        covering = in_range & active[:, None]
-        n_covering = covering.sum(axis=0)
         # c_{t-1}(k) = visits before this step / (t - 1); coverage_scores still holds it (0 at the first step).
         weight = 1.0 - self.fairness_coef * self.coverage_scores
+        if in_range.dtype != np.bool_:
+            return self._soft_coverage_credit(in_range * active[:, None], weight)
+        covering = in_range & active[:, None]
+        n_covering = covering.sum(axis=0)
         if self.reward_mode == "marginal":
             weight = weight * (n_covering == 1)
         elif self.reward_mode == "team":
@@ -671,6 +699,28 @@ class UAVCoverageCore:
         else:
             weight = weight / np.maximum(n_covering, 1)
         return covering @ weight * (self.n_uavs / len(weight))
+
+    def _soft_coverage_credit(self, cover: np.ndarray, weight: np.ndarray) -> np.ndarray:
+        """
+        :meth:`_coverage_credit` with soft covers (``coverage_edge`` > 0).
+
+        :param cover: (N, K) float in [0, 1], 0 for inactive UAVs
+        :param weight: (K,) worth of each PoI, 1 - fairness_coef c_{t-1}(k)
+        :return: (N,) credit
+        """
+        scale = self.n_uavs / len(weight)
+        if self.reward_mode == "marginal":
+            # UAV i's cover times prod_{j != i} (1 - cover_jk): how much of PoI k no teammate covers (N is small)
+            uncover = 1.0 - cover
+            others = np.empty_like(cover)
+            for i in range(self.n_uavs):
+                others[i] = np.prod(np.delete(uncover, i, axis=0), axis=0)
+            return (cover * others) @ weight * scale
+        covered = cover.max(axis=0)
+        if self.reward_mode == "team":
+            return np.full(self.n_uavs, float(covered @ weight) * scale)
+        share = cover / np.maximum(cover.sum(axis=0), _MIN_POSITIVE)
+        return (share * covered) @ weight * scale
 
     # -----------------------------------------------------------------------------------------------------------------
     # Observations and state

@@ -2,7 +2,10 @@
 Where a trained UAV team goes: for a saved MADDPG model on ``uav_coverage_v1`` (``obs_size=16``, 300-step episodes,
 random starts), each episode's metrics, each UAV's mean distance flown per step over the last 100 steps, the pairs
 of UAVs that end within 3 cells of each other, and each UAV's final position in every episode (does it keep one
-place whatever its start?).
+place whatever its start?). For each episode it also gives the static coverage of the final positions (the share of
+PoIs within R0 of a UAV hovering there) and how far small moves raise it: a coordinate ascent in which one UAV at a
+time moves to the best point within 0.75 cells of where it is (a grid of 1/16 cell), until no move gains; a large
+gain with small moves means the learned layout is imprecise rather than a poor local optimum.
 
     python benchmarks/uav_team_positions.py runs/pos/pos_s0.zip --episodes 4
     python benchmarks/uav_team_positions.py runs/tm/teammates_s0.zip --env-kwargs '{"teammate_channel": true}'
@@ -18,6 +21,40 @@ from sb3_maddpg import MADDPG
 from sb3_maddpg_envs import uav_coverage_v1
 
 EVAL_SEED = 10_000  # the first evaluation episode of benchmarks/uav_learning.py and docs/results.md
+
+
+def static_coverage(positions: np.ndarray, pois: np.ndarray, coverage_range: float) -> float:
+    """Share of the PoIs within ``coverage_range`` of some position (UAVs hovering at ``positions``)."""
+    sq_dist = ((pois[None, :, :] - positions[:, None, :]) ** 2).sum(axis=-1)
+    return float((sq_dist <= coverage_range**2).any(axis=0).mean())
+
+
+def refine_locally(
+    positions: np.ndarray, pois: np.ndarray, coverage_range: float, map_size: float, reach: float = 0.75
+) -> np.ndarray:
+    """
+    Coordinate ascent of the static coverage: one UAV at a time moves to the best point within ``reach`` (max-norm,
+    a grid of 1/16 cell, inside the area) of its position, until no move gains.
+
+    :return: the refined positions (N, 2)
+    """
+    offsets = np.arange(-reach, reach + 1e-9, 1.0 / 16.0)
+    grid = np.stack(np.meshgrid(offsets, offsets), axis=-1).reshape(-1, 2)
+    refined = positions.copy()
+    best = static_coverage(refined, pois, coverage_range)
+    improved = True
+    while improved:
+        improved = False
+        for i in range(len(refined)):
+            candidates = np.clip(refined[i] + grid, 0.0, np.nextafter(map_size, 0.0))
+            others = np.delete(refined, i, axis=0)
+            covered_by_others = (((pois[None] - others[:, None]) ** 2).sum(-1) <= coverage_range**2).any(axis=0)
+            by_candidate = ((pois[None] - candidates[:, None]) ** 2).sum(-1) <= coverage_range**2  # (C, K)
+            scores = (by_candidate | covered_by_others[None]).mean(axis=1)
+            j = int(np.argmax(scores))
+            if scores[j] > best + 1e-12:
+                refined[i], best, improved = candidates[j], float(scores[j]), True
+    return refined
 
 
 def main() -> None:
@@ -45,10 +82,15 @@ def main() -> None:
         finals.append(final)
         distances = np.linalg.norm(final[:, None] - final[None], axis=-1)[np.triu_indices(len(final), 1)]
         m = env.core.metrics()
+        core = env.core
+        refined = refine_locally(final, core.pois, core.coverage_range, core.map_size)
         print(
             f"episode {episode}: c {m['coverage']:.3f} f {m['fairness']:.3f} e {m['energy']:.3f} "
             f"eta {m['energy_efficiency']:.3f} | distance per step, last 100 steps: {speed.round(2).tolist()} | "
-            f"pairs within 3 cells: {int((distances < 3).sum())}, closest pair {distances.min():.2f}"
+            f"pairs within 3 cells: {int((distances < 3).sum())}, closest pair {distances.min():.2f} | "
+            f"static coverage {static_coverage(final, core.pois, core.coverage_range):.3f}, "
+            f"{static_coverage(refined, core.pois, core.coverage_range):.3f} after local moves "
+            f"(largest {np.abs(refined - final).max():.2f} cells)"
         )
     print("final position (x, y) of each UAV in each episode:")
     for i, positions in enumerate(np.array(finals).transpose(1, 0, 2)):

@@ -37,11 +37,15 @@ ENV[alpha01_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha01_actor3e4]="{$fast_actor,
 # position instead of on its cell's block)
 ENV[exact_mark]=uav_coverage_cpu_v1; ALGO[exact_mark]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[exact_mark]="{\"n_quantiles\": 1, $encoder}"
 ENV_KWARGS[exact_mark]='"position_mark": "exact"'
+# The same with less target policy smoothing (0.05 instead of 0.2; the later key wins in json.loads): research log
+# run 54, not yet the config
+ENV[exact_tpn005]=uav_coverage_cpu_v1; ALGO[exact_tpn005]="{$fast_actor, \"cvar_alpha\": 1.0, \"target_policy_noise\": 0.05}"; POLICY[exact_tpn005]="{\"n_quantiles\": 1, $encoder}"
+ENV_KWARGS[exact_tpn005]='"position_mark": "exact"'
 # v0 (the report's task at 1 pixel per cell: polar actions, refused walls, the report's reward) with the same settings
 ENV[v0_classic]=uav_coverage_fast_v0; ALGO[v0_classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[v0_classic]="{\"n_quantiles\": 1, $encoder}"
 
 configs=("$@")
-[ ${#configs[@]} -gt 0 ] || configs=(classic_actor3e4 classic alpha1 alpha05 alpha01 alpha05_actor3e4 alpha01_actor3e4 exact_mark v0_classic)
+[ ${#configs[@]} -gt 0 ] || configs=(classic_actor3e4 classic alpha1 alpha05 alpha01 alpha05_actor3e4 alpha01_actor3e4 exact_mark exact_tpn005 v0_classic)
 
 jobs=()
 for config in "${configs[@]}"; do

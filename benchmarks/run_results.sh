@@ -18,10 +18,12 @@ mkdir -p "$out"
 # quantiles (the entry: actor learning rate 3e-4, one quantile, i.e. classic_actor3e4 below).
 # benchmarks/run_stability.sh with max_grad_norm 1 and position_channel 1 passes the same as alpha1.
 v1_common='"learning_starts": 2000, "train_freq": 1, "gamma": 0.95, "tau": 0.01, "learning_rate": 0.001,
-  "critic_warmup_steps": 2000, "policy_delay": 2, "target_policy_noise": 0.2,
+  "critic_warmup_steps": 2000, "policy_delay": 2,
   "actor_reg": 0.001, "buffer_size": 100000, "batch_size": 64, "max_grad_norm": 1.0'
-v1_algo="$v1_common, \"actor_learning_rate\": 0.0001"
-fast_actor="$v1_common, \"actor_learning_rate\": 0.0003"
+v1_algo="$v1_common, \"target_policy_noise\": 0.2, \"actor_learning_rate\": 0.0001"
+fast_actor="$v1_common, \"target_policy_noise\": 0.2, \"actor_learning_rate\": 0.0003"
+# Research log run 54: the faster actor with less target policy smoothing (0.05 instead of 0.2)
+fast_actor_tpn005="$v1_common, \"target_policy_noise\": 0.05, \"actor_learning_rate\": 0.0003"
 encoder='"features_extractor_kwargs": {"padding": 1, "coord_channels": true, "batch_norm_eps": 0.001, "position_channel": 1}'
 
 declare -A ENV ALGO POLICY ENV_KWARGS
@@ -37,9 +39,8 @@ ENV[alpha01_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha01_actor3e4]="{$fast_actor,
 # position instead of on its cell's block)
 ENV[exact_mark]=uav_coverage_cpu_v1; ALGO[exact_mark]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[exact_mark]="{\"n_quantiles\": 1, $encoder}"
 ENV_KWARGS[exact_mark]='"position_mark": "exact"'
-# The same with less target policy smoothing (0.05 instead of 0.2; the later key wins in json.loads): research log
-# run 54, not yet the config
-ENV[exact_tpn005]=uav_coverage_cpu_v1; ALGO[exact_tpn005]="{$fast_actor, \"cvar_alpha\": 1.0, \"target_policy_noise\": 0.05}"; POLICY[exact_tpn005]="{\"n_quantiles\": 1, $encoder}"
+# The same with less target policy smoothing (0.05 instead of 0.2): research log run 54, not yet the config
+ENV[exact_tpn005]=uav_coverage_cpu_v1; ALGO[exact_tpn005]="{$fast_actor_tpn005, \"cvar_alpha\": 1.0}"; POLICY[exact_tpn005]="{\"n_quantiles\": 1, $encoder}"
 ENV_KWARGS[exact_tpn005]='"position_mark": "exact"'
 # v0 (the report's task at 1 pixel per cell: polar actions, refused walls, the report's reward) with the same settings
 ENV[v0_classic]=uav_coverage_fast_v0; ALGO[v0_classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[v0_classic]="{\"n_quantiles\": 1, $encoder}"

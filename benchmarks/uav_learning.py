@@ -85,7 +85,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--env", default="uav_coverage_cpu_v1", help="env id of sb3_maddpg's registry")
     parser.add_argument("--env-kwargs", type=json.loads, default={}, help="JSON dict of env parameters")
     parser.add_argument(
-        "--algo-kwargs", type=json.loads, default={}, help="JSON dict of MADDPG arguments; a learning rate \"lin_X\" decays linearly from X to 0"
+        "--algo-kwargs",
+        type=json.loads,
+        default={},
+        help='JSON dict of MADDPG arguments; a learning rate "lin_X" decays linearly from X to 0',
     )
     parser.add_argument("--policy-kwargs", type=json.loads, default={}, help="JSON dict of policy arguments")
     parser.add_argument(

@@ -23,10 +23,14 @@ from sb3_maddpg_envs import uav_coverage_v1
 EVAL_SEED = 10_000  # the first evaluation episode of benchmarks/uav_learning.py and docs/results.md
 
 
+def covers(points: np.ndarray, pois: np.ndarray, coverage_range: float) -> np.ndarray:
+    """(P, K) bool: PoI k within ``coverage_range`` of point p."""
+    return ((pois[None, :, :] - points[:, None, :]) ** 2).sum(axis=-1) <= coverage_range**2
+
+
 def static_coverage(positions: np.ndarray, pois: np.ndarray, coverage_range: float) -> float:
     """Share of the PoIs within ``coverage_range`` of some position (UAVs hovering at ``positions``)."""
-    sq_dist = ((pois[None, :, :] - positions[:, None, :]) ** 2).sum(axis=-1)
-    return float((sq_dist <= coverage_range**2).any(axis=0).mean())
+    return float(covers(positions, pois, coverage_range).any(axis=0).mean())
 
 
 def refine_locally(
@@ -47,10 +51,8 @@ def refine_locally(
         improved = False
         for i in range(len(refined)):
             candidates = np.clip(refined[i] + grid, 0.0, np.nextafter(map_size, 0.0))
-            others = np.delete(refined, i, axis=0)
-            covered_by_others = (((pois[None] - others[:, None]) ** 2).sum(-1) <= coverage_range**2).any(axis=0)
-            by_candidate = ((pois[None] - candidates[:, None]) ** 2).sum(-1) <= coverage_range**2  # (C, K)
-            scores = (by_candidate | covered_by_others[None]).mean(axis=1)
+            covered_by_others = covers(np.delete(refined, i, axis=0), pois, coverage_range).any(axis=0)
+            scores = (covers(candidates, pois, coverage_range) | covered_by_others[None]).mean(axis=1)
             j = int(np.argmax(scores))
             if scores[j] > best + 1e-12:
                 refined[i], best, improved = candidates[j], float(scores[j]), True

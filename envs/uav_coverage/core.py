@@ -687,7 +687,7 @@ class UAVCoverageCore:
         """
         # c_{t-1}(k) = visits before this step / (t - 1); coverage_scores still holds it (0 at the first step).
         weight = 1.0 - self.fairness_coef * self.coverage_scores
-        if in_range.dtype != np.bool_:
+        if self.coverage_edge > 0.0:
             return self._soft_coverage_credit(in_range * active[:, None], weight)
         covering = in_range & active[:, None]
         n_covering = covering.sum(axis=0)

@@ -14,8 +14,9 @@ read -r -a seeds <<< "${SEEDS:-0 1 2}"
 read -r -a cores <<< "${CORES:-0 1}"
 mkdir -p "$out"
 
-# The settings of zoo_configs/maddpg.yml's uav_coverage_cpu_v1 entry but the actor learning rate and the critic's
-# quantiles (the entry: actor learning rate 3e-4, one quantile, i.e. classic_actor3e4 below).
+# The settings of zoo_configs/maddpg.yml's uav_coverage_cpu_v1 entry but the actor learning rate, the target policy
+# smoothing, the critic's quantiles and the position mark (the entry: actor learning rate 3e-4, smoothing 0.05, one
+# quantile, the exact mark, i.e. exact_tpn005 below; before 2026-12-04 it was classic_actor3e4).
 # benchmarks/run_stability.sh with max_grad_norm 1 and position_channel 1 passes the same as alpha1.
 v1_common='"learning_starts": 2000, "train_freq": 1, "gamma": 0.95, "tau": 0.01, "learning_rate": 0.001,
   "critic_warmup_steps": 2000, "policy_delay": 2,
@@ -27,26 +28,32 @@ fast_actor_tpn005="$v1_common, \"target_policy_noise\": 0.05, \"actor_learning_r
 encoder='"features_extractor_kwargs": {"padding": 1, "coord_channels": true, "batch_norm_eps": 0.001, "position_channel": 1}'
 
 declare -A ENV ALGO POLICY ENV_KWARGS
-ENV[alpha05]=uav_coverage_cpu_v1; ALGO[alpha05]="{$v1_algo, \"cvar_alpha\": 0.5}"; POLICY[alpha05]="{\"n_quantiles\": 25, $encoder}"
-ENV[alpha1]=uav_coverage_cpu_v1;  ALGO[alpha1]="{$v1_algo, \"cvar_alpha\": 1.0}";  POLICY[alpha1]="{\"n_quantiles\": 25, $encoder}"
-ENV[alpha01]=uav_coverage_cpu_v1; ALGO[alpha01]="{$v1_algo, \"cvar_alpha\": 0.1}"; POLICY[alpha01]="{\"n_quantiles\": 25, $encoder}"
-ENV[classic]=uav_coverage_cpu_v1; ALGO[classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[classic]="{\"n_quantiles\": 1, $encoder}"
+# v1 draws each UAV at its exact position (position_mark="exact") since 2026-12-04; the configurations measured
+# before that keep the cell mark they were measured with.
+cell='"position_mark": "cell"'
+ENV[alpha05]=uav_coverage_cpu_v1; ALGO[alpha05]="{$v1_algo, \"cvar_alpha\": 0.5}"; POLICY[alpha05]="{\"n_quantiles\": 25, $encoder}"; ENV_KWARGS[alpha05]="$cell"
+ENV[alpha1]=uav_coverage_cpu_v1;  ALGO[alpha1]="{$v1_algo, \"cvar_alpha\": 1.0}";  POLICY[alpha1]="{\"n_quantiles\": 25, $encoder}"; ENV_KWARGS[alpha1]="$cell"
+ENV[alpha01]=uav_coverage_cpu_v1; ALGO[alpha01]="{$v1_algo, \"cvar_alpha\": 0.1}"; POLICY[alpha01]="{\"n_quantiles\": 25, $encoder}"; ENV_KWARGS[alpha01]="$cell"
+ENV[classic]=uav_coverage_cpu_v1; ALGO[classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[classic]="{\"n_quantiles\": 1, $encoder}"; ENV_KWARGS[classic]="$cell"
 # The same with a faster actor (actor learning rate 3e-4 instead of 1e-4: zoo_configs/maddpg.yml's v1 entries)
-ENV[classic_actor3e4]=uav_coverage_cpu_v1; ALGO[classic_actor3e4]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[classic_actor3e4]="{\"n_quantiles\": 1, $encoder}"
-ENV[alpha05_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha05_actor3e4]="{$fast_actor, \"cvar_alpha\": 0.5}"; POLICY[alpha05_actor3e4]="{\"n_quantiles\": 25, $encoder}"
-ENV[alpha01_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha01_actor3e4]="{$fast_actor, \"cvar_alpha\": 0.1}"; POLICY[alpha01_actor3e4]="{\"n_quantiles\": 25, $encoder}"
+ENV[classic_actor3e4]=uav_coverage_cpu_v1; ALGO[classic_actor3e4]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[classic_actor3e4]="{\"n_quantiles\": 1, $encoder}"; ENV_KWARGS[classic_actor3e4]="$cell"
+ENV[alpha05_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha05_actor3e4]="{$fast_actor, \"cvar_alpha\": 0.5}"; POLICY[alpha05_actor3e4]="{\"n_quantiles\": 25, $encoder}"; ENV_KWARGS[alpha05_actor3e4]="$cell"
+ENV[alpha01_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha01_actor3e4]="{$fast_actor, \"cvar_alpha\": 0.1}"; POLICY[alpha01_actor3e4]="{\"n_quantiles\": 25, $encoder}"; ENV_KWARGS[alpha01_actor3e4]="$cell"
 # The faster actor's settings on v1 with the exact position mark (position_mark="exact": each UAV drawn at its exact
 # position instead of on its cell's block)
 ENV[exact_mark]=uav_coverage_cpu_v1; ALGO[exact_mark]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[exact_mark]="{\"n_quantiles\": 1, $encoder}"
 ENV_KWARGS[exact_mark]='"position_mark": "exact"'
-# The same with less target policy smoothing (0.05 instead of 0.2): research log run 54, not yet the config
+# The same with less target policy smoothing (0.05 instead of 0.2): research log run 54, the config since 2026-12-04
 ENV[exact_tpn005]=uav_coverage_cpu_v1; ALGO[exact_tpn005]="{$fast_actor_tpn005, \"cvar_alpha\": 1.0}"; POLICY[exact_tpn005]="{\"n_quantiles\": 1, $encoder}"
 ENV_KWARGS[exact_tpn005]='"position_mark": "exact"'
+# The same with the discount 0.9 instead of 0.95 (research log, 2026-12-04)
+ENV[exact_tpn005_g09]=uav_coverage_cpu_v1; ALGO[exact_tpn005_g09]="{$fast_actor_tpn005, \"gamma\": 0.9, \"cvar_alpha\": 1.0}"; POLICY[exact_tpn005_g09]="{\"n_quantiles\": 1, $encoder}"
+ENV_KWARGS[exact_tpn005_g09]='"position_mark": "exact"'
 # v0 (the report's task at 1 pixel per cell: polar actions, refused walls, the report's reward) with the same settings
 ENV[v0_classic]=uav_coverage_fast_v0; ALGO[v0_classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[v0_classic]="{\"n_quantiles\": 1, $encoder}"
 
 configs=("$@")
-[ ${#configs[@]} -gt 0 ] || configs=(classic_actor3e4 classic alpha1 alpha05 alpha01 alpha05_actor3e4 alpha01_actor3e4 exact_mark exact_tpn005 v0_classic)
+[ ${#configs[@]} -gt 0 ] || configs=(classic_actor3e4 classic alpha1 alpha05 alpha01 alpha05_actor3e4 alpha01_actor3e4 exact_mark exact_tpn005 exact_tpn005_g09 v0_classic)
 
 jobs=()
 for config in "${configs[@]}"; do

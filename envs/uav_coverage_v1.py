@@ -14,6 +14,7 @@ compare directly. `docs/environment.md` lists each difference with the reason an
 | `reward_mode` | `"report"` | `"coverage"`: each UAV's share of the step's fairness-weighted coverage, minus its energy |
 | `comm_penalty` | 1 | 0.1 |
 | `start` | `"fixed"` | `"random"`: new start positions every episode, as in the evaluation |
+| `position_mark` | `"cell"` | `"exact"`: each UAV drawn as an anti-aliased square at its exact position, not on its cell |
 
 ```python
 uav_coverage_v1.parallel_env(**V1_DEFAULTS, obs_size=16)   # any parameter of v0 can be given
@@ -38,6 +39,7 @@ V1_DEFAULTS: dict[str, Any] = {
     "energy_coef": 0.5,
     "comm_penalty": 0.1,
     "start": "random",
+    "position_mark": "exact",
 }
 
 

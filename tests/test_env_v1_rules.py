@@ -167,7 +167,13 @@ def test_v1_defaults_and_api():
 
 def test_v1_with_v0_rules_reproduces_v0_exactly():
     v0_rules = dict(
-        action_mode="polar", wall_mode="refuse", reward_mode="report", wall_penalty=10.0, comm_penalty=1.0, start="fixed"
+        action_mode="polar",
+        wall_mode="refuse",
+        reward_mode="report",
+        wall_penalty=10.0,
+        comm_penalty=1.0,
+        start="fixed",
+        position_mark="cell",
     )
     envs = [
         uav_coverage_v0.parallel_env(obs_size=16, max_cycles=30),

@@ -14,9 +14,10 @@ read -r -a seeds <<< "${SEEDS:-0 1 2}"
 read -r -a cores <<< "${CORES:-0 1}"
 mkdir -p "$out"
 
-# The settings of zoo_configs/maddpg.yml's uav_coverage_cpu_v1 entry but the actor learning rate, the target policy
-# smoothing, the critic's quantiles and the position mark (the entry: actor learning rate 3e-4, smoothing 0.05, one
-# quantile, the exact mark, i.e. exact_tpn005 below; before 2026-12-04 it was classic_actor3e4).
+# The settings of zoo_configs/maddpg.yml's uav_coverage_cpu_v1 entry but the discount, the actor learning rate, the
+# target policy smoothing, the critic's quantiles and the position mark (the entry: γ 0.9, actor learning rate 3e-4,
+# smoothing 0.05, one quantile, the exact mark, i.e. exact_tpn005_g09 below; before 2026-12-04 it was
+# classic_actor3e4).
 # benchmarks/run_stability.sh with max_grad_norm 1 and position_channel 1 passes the same as alpha1.
 v1_common='"learning_starts": 2000, "train_freq": 1, "gamma": 0.95, "tau": 0.01, "learning_rate": 0.001,
   "critic_warmup_steps": 2000, "policy_delay": 2,
@@ -43,10 +44,10 @@ ENV[alpha01_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha01_actor3e4]="{$fast_actor,
 # position instead of on its cell's block)
 ENV[exact_mark]=uav_coverage_cpu_v1; ALGO[exact_mark]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[exact_mark]="{\"n_quantiles\": 1, $encoder}"
 ENV_KWARGS[exact_mark]='"position_mark": "exact"'
-# The same with less target policy smoothing (0.05 instead of 0.2): research log run 54, the config since 2026-12-04
+# The same with less target policy smoothing (0.05 instead of 0.2): research log run 54
 ENV[exact_tpn005]=uav_coverage_cpu_v1; ALGO[exact_tpn005]="{$fast_actor_tpn005, \"cvar_alpha\": 1.0}"; POLICY[exact_tpn005]="{\"n_quantiles\": 1, $encoder}"
 ENV_KWARGS[exact_tpn005]='"position_mark": "exact"'
-# The same with the discount 0.9 instead of 0.95 (research log, 2026-12-04)
+# The same with the discount 0.9 instead of 0.95 (research log run 56): the config since 2026-12-04
 ENV[exact_tpn005_g09]=uav_coverage_cpu_v1; ALGO[exact_tpn005_g09]="{$fast_actor_tpn005, \"gamma\": 0.9, \"cvar_alpha\": 1.0}"; POLICY[exact_tpn005_g09]="{\"n_quantiles\": 1, $encoder}"
 ENV_KWARGS[exact_tpn005_g09]='"position_mark": "exact"'
 # v0 (the report's task at 1 pixel per cell: polar actions, refused walls, the report's reward) with the same settings

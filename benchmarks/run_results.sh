@@ -50,11 +50,15 @@ ENV_KWARGS[exact_tpn005]='"position_mark": "exact"'
 # The same with the discount 0.9 instead of 0.95 (research log run 56): the config since 2026-12-04
 ENV[exact_tpn005_g09]=uav_coverage_cpu_v1; ALGO[exact_tpn005_g09]="{$fast_actor_tpn005, \"gamma\": 0.9, \"cvar_alpha\": 1.0}"; POLICY[exact_tpn005_g09]="{\"n_quantiles\": 1, $encoder}"
 ENV_KWARGS[exact_tpn005_g09]='"position_mark": "exact"'
+# The same with the teammate channel (teammate_channel=True: the teammates within radio range drawn in their own
+# channel): research log run 59
+ENV[exact_tpn005_g09_mates]=uav_coverage_cpu_v1; ALGO[exact_tpn005_g09_mates]="${ALGO[exact_tpn005_g09]}"; POLICY[exact_tpn005_g09_mates]="${POLICY[exact_tpn005_g09]}"
+ENV_KWARGS[exact_tpn005_g09_mates]='"position_mark": "exact", "teammate_channel": true'
 # v0 (the report's task at 1 pixel per cell: polar actions, refused walls, the report's reward) with the same settings
 ENV[v0_classic]=uav_coverage_fast_v0; ALGO[v0_classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[v0_classic]="{\"n_quantiles\": 1, $encoder}"
 
 configs=("$@")
-[ ${#configs[@]} -gt 0 ] || configs=(classic_actor3e4 classic alpha1 alpha05 alpha01 alpha05_actor3e4 alpha01_actor3e4 exact_mark exact_tpn005 exact_tpn005_g09 v0_classic)
+[ ${#configs[@]} -gt 0 ] || configs=(classic_actor3e4 classic alpha1 alpha05 alpha01 alpha05_actor3e4 alpha01_actor3e4 exact_mark exact_tpn005 exact_tpn005_g09 exact_tpn005_g09_mates v0_classic)
 
 jobs=()
 for config in "${configs[@]}"; do

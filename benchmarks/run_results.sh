@@ -3,21 +3,22 @@
 # uav_coverage_cpu_v1 with 300-step episodes, two runs at a time, each pinned to one core with one torch thread.
 #   bash benchmarks/run_results.sh [CONFIG ...]     (default: every configuration below)
 #   python benchmarks/results_table.py runs/results/*.jsonl --figure docs/figures/learning_curves_v1.png
-# SEEDS (default "0 1 2"), TIMESTEPS (default 24000), OUT (default runs/results) and CORES (default "0 1", one run
-# at a time on each) override the defaults.
+# SEEDS (default "0 1 2"), TIMESTEPS (default: 28000 for the config exact_tpn005_g09_mates, 24000 for the others),
+# OUT (default runs/results) and CORES (default "0 1", one run at a time on each) override the defaults.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 py="${PYTHON:-.venv/bin/python}"
 out="${OUT:-runs/results}"
-timesteps="${TIMESTEPS:-24000}"
+timesteps="${TIMESTEPS:-}"
 read -r -a seeds <<< "${SEEDS:-0 1 2}"
 read -r -a cores <<< "${CORES:-0 1}"
 mkdir -p "$out"
 
 # The settings of zoo_configs/maddpg.yml's uav_coverage_cpu_v1 entry but the discount, the actor learning rate, the
-# target policy smoothing, the critic's quantiles and the position mark (the entry: γ 0.9, actor learning rate 3e-4,
-# smoothing 0.05, one quantile, the exact mark, i.e. exact_tpn005_g09 below; before 2026-12-04 it was
-# classic_actor3e4).
+# target policy smoothing, the critic's quantiles, the position mark and the teammate channel (the entry: γ 0.9, actor
+# learning rate 3e-4, smoothing 0.05, one quantile, the exact mark, the teammate channel, 28 000 timesteps, i.e.
+# exact_tpn005_g09_mates below; before that, on 2026-12-04, exact_tpn005_g09 with 24 000 timesteps, and before
+# 2026-12-04 classic_actor3e4).
 # benchmarks/run_stability.sh with max_grad_norm 1 and position_channel 1 passes the same as alpha1.
 v1_common='"learning_starts": 2000, "train_freq": 1, "gamma": 0.95, "tau": 0.01, "learning_rate": 0.001,
   "critic_warmup_steps": 2000, "policy_delay": 2,
@@ -28,10 +29,12 @@ fast_actor="$v1_common, \"target_policy_noise\": 0.2, \"actor_learning_rate\": 0
 fast_actor_tpn005="$v1_common, \"target_policy_noise\": 0.05, \"actor_learning_rate\": 0.0003"
 encoder='"features_extractor_kwargs": {"padding": 1, "coord_channels": true, "batch_norm_eps": 0.001, "position_channel": 1}'
 
-declare -A ENV ALGO POLICY ENV_KWARGS
-# v1 draws each UAV at its exact position (position_mark="exact") since 2026-12-04; the configurations measured
-# before that keep the cell mark they were measured with.
-cell='"position_mark": "cell"'
+declare -A ENV ALGO POLICY ENV_KWARGS STEPS
+# v1 draws each UAV at its exact position (position_mark="exact") and shows the linked teammates in a fourth channel
+# (teammate_channel=True) since 2026-12-04; the configurations measured before that keep the mark and the channels
+# they were measured with.
+cell='"position_mark": "cell", "teammate_channel": false'
+exact='"position_mark": "exact", "teammate_channel": false'
 ENV[alpha05]=uav_coverage_cpu_v1; ALGO[alpha05]="{$v1_algo, \"cvar_alpha\": 0.5}"; POLICY[alpha05]="{\"n_quantiles\": 25, $encoder}"; ENV_KWARGS[alpha05]="$cell"
 ENV[alpha1]=uav_coverage_cpu_v1;  ALGO[alpha1]="{$v1_algo, \"cvar_alpha\": 1.0}";  POLICY[alpha1]="{\"n_quantiles\": 25, $encoder}"; ENV_KWARGS[alpha1]="$cell"
 ENV[alpha01]=uav_coverage_cpu_v1; ALGO[alpha01]="{$v1_algo, \"cvar_alpha\": 0.1}"; POLICY[alpha01]="{\"n_quantiles\": 25, $encoder}"; ENV_KWARGS[alpha01]="$cell"
@@ -43,17 +46,17 @@ ENV[alpha01_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha01_actor3e4]="{$fast_actor,
 # The faster actor's settings on v1 with the exact position mark (position_mark="exact": each UAV drawn at its exact
 # position instead of on its cell's block)
 ENV[exact_mark]=uav_coverage_cpu_v1; ALGO[exact_mark]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[exact_mark]="{\"n_quantiles\": 1, $encoder}"
-ENV_KWARGS[exact_mark]='"position_mark": "exact"'
+ENV_KWARGS[exact_mark]="$exact"
 # The same with less target policy smoothing (0.05 instead of 0.2): research log run 54
 ENV[exact_tpn005]=uav_coverage_cpu_v1; ALGO[exact_tpn005]="{$fast_actor_tpn005, \"cvar_alpha\": 1.0}"; POLICY[exact_tpn005]="{\"n_quantiles\": 1, $encoder}"
-ENV_KWARGS[exact_tpn005]='"position_mark": "exact"'
-# The same with the discount 0.9 instead of 0.95 (research log run 56): the config since 2026-12-04
+ENV_KWARGS[exact_tpn005]="$exact"
+# The same with the discount 0.9 instead of 0.95 (research log run 56): the config on 2026-12-04 until the next one
 ENV[exact_tpn005_g09]=uav_coverage_cpu_v1; ALGO[exact_tpn005_g09]="{$fast_actor_tpn005, \"gamma\": 0.9, \"cvar_alpha\": 1.0}"; POLICY[exact_tpn005_g09]="{\"n_quantiles\": 1, $encoder}"
-ENV_KWARGS[exact_tpn005_g09]='"position_mark": "exact"'
+ENV_KWARGS[exact_tpn005_g09]="$exact"
 # The same with the teammate channel (teammate_channel=True: the teammates within radio range drawn in their own
-# channel): research log run 59
+# channel; research log run 59) and 28 000 timesteps: the config since 2026-12-04
 ENV[exact_tpn005_g09_mates]=uav_coverage_cpu_v1; ALGO[exact_tpn005_g09_mates]="${ALGO[exact_tpn005_g09]}"; POLICY[exact_tpn005_g09_mates]="${POLICY[exact_tpn005_g09]}"
-ENV_KWARGS[exact_tpn005_g09_mates]='"position_mark": "exact", "teammate_channel": true'
+ENV_KWARGS[exact_tpn005_g09_mates]='"position_mark": "exact", "teammate_channel": true'; STEPS[exact_tpn005_g09_mates]=28000
 # v0 (the report's task at 1 pixel per cell: polar actions, refused walls, the report's reward) with the same settings
 ENV[v0_classic]=uav_coverage_fast_v0; ALGO[v0_classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[v0_classic]="{\"n_quantiles\": 1, $encoder}"
 
@@ -69,7 +72,7 @@ done
 run() {  # run CONFIG SEED CORE
   local config=$1 seed=$2 core=$3
   taskset -c "$core" "$py" benchmarks/uav_learning.py --env "${ENV[$config]}" --env-kwargs "{\"max_cycles\": 300${ENV_KWARGS[$config]:+, ${ENV_KWARGS[$config]}}}" \
-    --algo-kwargs "${ALGO[$config]}" --policy-kwargs "${POLICY[$config]}" --timesteps "$timesteps" \
+    --algo-kwargs "${ALGO[$config]}" --policy-kwargs "${POLICY[$config]}" --timesteps "${timesteps:-${STEPS[$config]:-24000}}" \
     --eval-every 4000 --seed "$seed" --save "$out/${config}_s${seed}.zip" --out "$out/${config}_s${seed}.jsonl" \
     > "$out/${config}_s${seed}.log" 2>&1
 }

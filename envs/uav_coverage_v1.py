@@ -15,6 +15,7 @@ compare directly. `docs/environment.md` lists each difference with the reason an
 | `comm_penalty` | 1 | 0.1 |
 | `start` | `"fixed"` | `"random"`: new start positions every episode, as in the evaluation |
 | `position_mark` | `"cell"` | `"exact"`: each UAV drawn as an anti-aliased square at its exact position, not on its cell |
+| `teammate_channel` | False | True: a fourth observation channel shows the active teammates within radio range R |
 
 ```python
 uav_coverage_v1.parallel_env(**V1_DEFAULTS, obs_size=16)   # any parameter of v0 can be given
@@ -40,6 +41,7 @@ V1_DEFAULTS: dict[str, Any] = {
     "comm_penalty": 0.1,
     "start": "random",
     "position_mark": "exact",
+    "teammate_channel": True,
 }
 
 

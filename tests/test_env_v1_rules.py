@@ -174,6 +174,7 @@ def test_v1_with_v0_rules_reproduces_v0_exactly():
         comm_penalty=1.0,
         start="fixed",
         position_mark="cell",
+        teammate_channel=False,
     )
     envs = [
         uav_coverage_v0.parallel_env(obs_size=16, max_cycles=30),

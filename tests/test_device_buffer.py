@@ -90,8 +90,13 @@ class TwinDriver:
                 self.reset_without_episode_end()
 
 
+def on_host(indices) -> np.ndarray:
+    """Indices as a NumPy array, wherever they are (``np.asarray`` cannot read a CUDA tensor)."""
+    return indices.cpu().numpy() if isinstance(indices, th.Tensor) else np.asarray(indices)
+
+
 def assert_same_samples(numpy_buffer: MultiAgentReplayBuffer, device_buffer: DeviceReplayBuffer, slots, copies) -> None:
-    expected = numpy_buffer._get_samples(np.asarray(slots), copy_inds=np.asarray(copies))
+    expected = numpy_buffer._get_samples(on_host(slots), copy_inds=on_host(copies))
     got = device_buffer._get_samples(slots, copy_inds=copies)
     for name, x, y in zip(FIELDS, expected, got, strict=True):
         assert y.device == concrete(device_buffer.device), name

@@ -34,7 +34,7 @@ declare -A ENV ALGO POLICY ENV_KWARGS STEPS
 # (teammate_channel=True) since 2026-12-04; the configurations measured before that keep the mark and the channels
 # they were measured with.
 cell='"position_mark": "cell", "teammate_channel": false'
-exact='"position_mark": "exact", "teammate_channel": false'
+exact_no_mates='"position_mark": "exact", "teammate_channel": false'
 ENV[alpha05]=uav_coverage_cpu_v1; ALGO[alpha05]="{$v1_algo, \"cvar_alpha\": 0.5}"; POLICY[alpha05]="{\"n_quantiles\": 25, $encoder}"; ENV_KWARGS[alpha05]="$cell"
 ENV[alpha1]=uav_coverage_cpu_v1;  ALGO[alpha1]="{$v1_algo, \"cvar_alpha\": 1.0}";  POLICY[alpha1]="{\"n_quantiles\": 25, $encoder}"; ENV_KWARGS[alpha1]="$cell"
 ENV[alpha01]=uav_coverage_cpu_v1; ALGO[alpha01]="{$v1_algo, \"cvar_alpha\": 0.1}"; POLICY[alpha01]="{\"n_quantiles\": 25, $encoder}"; ENV_KWARGS[alpha01]="$cell"
@@ -46,13 +46,13 @@ ENV[alpha01_actor3e4]=uav_coverage_cpu_v1; ALGO[alpha01_actor3e4]="{$fast_actor,
 # The faster actor's settings on v1 with the exact position mark (position_mark="exact": each UAV drawn at its exact
 # position instead of on its cell's block)
 ENV[exact_mark]=uav_coverage_cpu_v1; ALGO[exact_mark]="{$fast_actor, \"cvar_alpha\": 1.0}"; POLICY[exact_mark]="{\"n_quantiles\": 1, $encoder}"
-ENV_KWARGS[exact_mark]="$exact"
+ENV_KWARGS[exact_mark]="$exact_no_mates"
 # The same with less target policy smoothing (0.05 instead of 0.2): research log run 54
 ENV[exact_tpn005]=uav_coverage_cpu_v1; ALGO[exact_tpn005]="{$fast_actor_tpn005, \"cvar_alpha\": 1.0}"; POLICY[exact_tpn005]="{\"n_quantiles\": 1, $encoder}"
-ENV_KWARGS[exact_tpn005]="$exact"
+ENV_KWARGS[exact_tpn005]="$exact_no_mates"
 # The same with the discount 0.9 instead of 0.95 (research log run 56): the config on 2026-12-04 until the next one
 ENV[exact_tpn005_g09]=uav_coverage_cpu_v1; ALGO[exact_tpn005_g09]="{$fast_actor_tpn005, \"gamma\": 0.9, \"cvar_alpha\": 1.0}"; POLICY[exact_tpn005_g09]="{\"n_quantiles\": 1, $encoder}"
-ENV_KWARGS[exact_tpn005_g09]="$exact"
+ENV_KWARGS[exact_tpn005_g09]="$exact_no_mates"
 # The same with the teammate channel (teammate_channel=True: the teammates within radio range drawn in their own
 # channel; research log run 59) and 28 000 timesteps: the config since 2026-12-04
 ENV[exact_tpn005_g09_mates]=uav_coverage_cpu_v1; ALGO[exact_tpn005_g09_mates]="${ALGO[exact_tpn005_g09]}"; POLICY[exact_tpn005_g09_mates]="${POLICY[exact_tpn005_g09]}"

@@ -30,7 +30,7 @@ from pettingzoo import ParallelEnv
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
 from sb3_maddpg.common.device_buffer import DeviceReplayBuffer
-from sb3_maddpg.maddpg.graphed_update import GraphedUpdate
+from sb3_maddpg.common.graphed_update import GraphedUpdate
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import per_agent_reference  # noqa: E402  (the sibling file, not a package)
@@ -117,7 +117,9 @@ def build(
     if device_buffer:
         model.replay_buffer = DeviceReplayBuffer.from_buffer(buffer, storage_device=model.device, device=model.device)
     if VARIANTS[variant][0].get("cuda_graph") and not record_graph:
-        model._graphed_update = GraphedUpdate(model, capture=False)
+        model._graphed_update = GraphedUpdate(
+            model._gradient_step, [model.critic.optimizer, model.actor.optimizer], capture=False
+        )
     model._setup_learn(total_timesteps=1)  # logger and counters, as learn() would
     return model
 

@@ -27,8 +27,9 @@ from sb3_maddpg.zoo.registry import UsageError, check_env_kwargs
 PROG = "sb3_maddpg"
 ZOO_COMMANDS = ("train", "optimize", "enjoy")
 DEFAULT_ALGO = "maddpg"
+# The library's algorithms, each with its RL Zoo hyperparameter file zoo_configs/<algo>.yml
+MULTIAGENT_ALGOS = ("maddpg", "matd3")
 DEFAULT_ENV = "uav_coverage_v0"
-DEFAULT_CONFIG = Path("zoo_configs") / "maddpg.yml"
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -64,12 +65,13 @@ def _has_flag(argv: list[str], *flags: str) -> bool:
     return any(arg == flag or arg.startswith(flag + "=") for arg in argv for flag in flags)
 
 
-def _default_config() -> str:
-    """The project's ``zoo_configs/maddpg.yml``: in the working directory, else next to the installed sources."""
-    for candidate in (Path.cwd() / DEFAULT_CONFIG, Path(__file__).resolve().parent.parent / DEFAULT_CONFIG):
+def _default_config(algo: str) -> str:
+    """The project's ``zoo_configs/<algo>.yml``: in the working directory, else next to the installed sources."""
+    config = Path("zoo_configs") / f"{algo}.yml"
+    for candidate in (Path.cwd() / config, Path(__file__).resolve().parent.parent / config):
         if candidate.is_file():
             return os.fspath(candidate)
-    raise UsageError(f"no -conf given and {DEFAULT_CONFIG} was not found; pass -conf PATH/TO/maddpg.yml")
+    raise UsageError(f"no -conf given and {config} was not found; pass -conf PATH/TO/{algo}.yml")
 
 
 def _zoo_preparser(command: str) -> argparse.ArgumentParser:
@@ -110,9 +112,9 @@ def _check_env(env_id: str, algo: str) -> None:
             f"unknown env {env_id!r}{hint}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))} "
             "(add your own with sb3_maddpg.zoo.register_multiagent_env and --gym-packages)"
         )
-    if algo == "maddpg" and not is_multiagent_env(env_id):
+    if algo in MULTIAGENT_ALGOS and not is_multiagent_env(env_id):
         raise UsageError(
-            f"--algo maddpg needs a multi-agent env, and {env_id!r} is a single-agent Gymnasium env; "
+            f"--algo {algo} needs a multi-agent env, and {env_id!r} is a single-agent Gymnasium env; "
             f"multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}"
         )
 
@@ -216,7 +218,7 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
             )
         except (AssertionError, ValueError) as error:
             raise UsageError(f"no trained model to load: {error} (train one first, or pass -f LOG_FOLDER)") from error
-        if args.algo == DEFAULT_ALGO and is_multiagent_env(args.env):
+        if args.algo in MULTIAGENT_ALGOS and is_multiagent_env(args.env):
             _check_model_fits_env(model_path, args.env, env_kwargs)
         return argv
 
@@ -233,8 +235,8 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         check_env_kwargs(args.env, eval_env_kwargs, flag="--eval-env-kwargs")
     parse_key_values(args.hyperparams, "--hyperparams")
     config = args.conf_file
-    if config is None and args.algo == DEFAULT_ALGO:
-        config = _default_config()
+    if config is None and args.algo in MULTIAGENT_ALGOS:
+        config = _default_config(args.algo)
         argv += ["-conf", config]
     if config is not None:
         _check_config(config, args.env)

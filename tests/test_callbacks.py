@@ -122,7 +122,7 @@ def test_maddpg_adds_the_metrics_callback_once() -> None:
     from stable_baselines3.common.callbacks import CallbackList
 
     from sb3_maddpg import MADDPG, make_multiagent_vec_env
-    from sb3_maddpg.maddpg.maddpg import _contains_callback
+    from sb3_maddpg.common.off_policy_algorithm import contains_callback
     from sb3_maddpg_envs import uav_coverage_v0
 
     venv = make_multiagent_vec_env(uav_coverage_v0.parallel_env, n_envs=1, seed=0, env_kwargs=dict(n_uavs=2, obs_size=16))
@@ -136,4 +136,4 @@ def test_maddpg_adds_the_metrics_callback_once() -> None:
     assert count(model._init_callback(None)) == 1
     given = EpisodeMetricsCallback()
     assert count(model._init_callback([given])) == 1
-    assert _contains_callback(model._init_callback(given), EpisodeMetricsCallback)
+    assert contains_callback(model._init_callback(given), EpisodeMetricsCallback)

@@ -6,7 +6,7 @@ import torch as th
 from maddpg_test_envs import CountingImageEnv, TargetReachEnv
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
-from sb3_maddpg.maddpg.graphed_update import GraphedUpdate, make_capturable
+from sb3_maddpg.common.graphed_update import GraphedUpdate, make_capturable
 
 needs_cuda = pytest.mark.skipif(not th.cuda.is_available(), reason="needs a CUDA device")
 
@@ -41,6 +41,11 @@ def train_seeded(model: MADDPG, steps: int, seed: int = 1) -> None:
     model.train(gradient_steps=steps, batch_size=16)
 
 
+def graphed_code_path(model: MADDPG) -> GraphedUpdate:
+    """The graph's code path run without recording: static batch tensors, capturable optimizers."""
+    return GraphedUpdate(model._gradient_step, [model.critic.optimizer, model.actor.optimizer], capture=False)
+
+
 def assert_same_networks(a: MADDPG, b: MADDPG, atol: float) -> None:
     state_a, state_b = a.policy.state_dict(), b.policy.state_dict()
     assert state_a.keys() == state_b.keys()
@@ -54,7 +59,7 @@ def test_graph_code_path_computes_the_eager_update_on_cpu(policy):
     assert_same_networks(eager, graphed, atol=0.0)
     # The graph's code path, run without recording: static batch tensors, capturable optimizers, tensor learning
     # rates. The eager model gets the same capturable optimizers, so any difference would come from the code path.
-    graphed._graphed_update = GraphedUpdate(graphed, capture=False)
+    graphed._graphed_update = graphed_code_path(graphed)
     make_capturable(eager.critic.optimizer)
     make_capturable(eager.actor.optimizer)
     assert isinstance(graphed.critic.optimizer.param_groups[0]["lr"], th.Tensor)
@@ -80,7 +85,7 @@ def test_capturable_optimizers_take_the_default_optimizers_steps():
 def test_graph_code_path_follows_a_learning_rate_schedule():
     eager = make_model("MlpPolicy", learning_rate=lambda progress: 1e-3 * progress)
     graphed = make_model("MlpPolicy", learning_rate=lambda progress: 1e-3 * progress)
-    graphed._graphed_update = GraphedUpdate(graphed, capture=False)
+    graphed._graphed_update = graphed_code_path(graphed)
     lr_tensor = graphed.critic.optimizer.param_groups[0]["lr"]
     for progress in (0.8, 0.3):
         eager._current_progress_remaining = graphed._current_progress_remaining = progress
@@ -111,8 +116,9 @@ def test_cuda_graph_needs_cuda():
     with pytest.raises(TypeError, match="bf16_autocast must be True or False"):
         MADDPG("MlpPolicy", venv, bf16_autocast=1, device="cpu")
     if not th.cuda.is_available():
+        model = MADDPG("MlpPolicy", venv, device="cpu")
         with pytest.raises(ValueError, match="CUDA graphs need CUDA"):
-            GraphedUpdate(MADDPG("MlpPolicy", venv, device="cpu"), capture=True)
+            GraphedUpdate(model._gradient_step, [model.critic.optimizer], capture=True)
 
 
 def test_bf16_autocast_trains_close_to_float32():

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from maddpg_test_envs import TargetReachEnv
 
-from sb3_maddpg import MADDPG, make_multiagent_vec_env
+from sb3_maddpg import MADDPG, MATD3, make_multiagent_vec_env
 from sb3_maddpg.common.noise import DecayingGaussianNoise
 
 
@@ -42,12 +42,12 @@ def episode_end_coverage(env_fn, env_kwargs: dict, act, n_episodes: int = 8) -> 
     return float(np.mean(coverage[:n_episodes]))
 
 
-@pytest.mark.parametrize(("cvar_alpha", "seed"), [(1.0, 0), (0.25, 1)])
-def test_mlp_policy_beats_random_on_cooperative_target_reaching(cvar_alpha, seed):
-    """Risk-neutral (alpha = 1) and risk-averse (alpha = 0.25) critics both learn the cooperative task."""
+@pytest.mark.parametrize(("algorithm", "cvar_alpha", "seed"), [(MADDPG, 1.0, 0), (MADDPG, 0.25, 1), (MATD3, 1.0, 0)])
+def test_mlp_policy_beats_random_on_cooperative_target_reaching(algorithm, cvar_alpha, seed):
+    """Risk-neutral (alpha = 1) and risk-averse (alpha = 0.25) critics both learn the cooperative task; MATD3 too."""
     kwargs = dict(n_agents=2)
     venv = make_multiagent_vec_env(TargetReachEnv, n_envs=2, seed=seed, env_kwargs=kwargs)
-    model = MADDPG(
+    model = algorithm(
         "MlpPolicy",
         venv,
         learning_starts=500,
@@ -67,7 +67,8 @@ def test_mlp_policy_beats_random_on_cooperative_target_reaching(cvar_alpha, seed
     random_return = mean_episode_return(eval_env, lambda obs: rng.uniform(-1, 1, (len(obs), 2)).astype(np.float32))
     eval_env = make_multiagent_vec_env(TargetReachEnv, n_envs=4, seed=eval_seed, env_kwargs=kwargs)
     trained_return = mean_episode_return(eval_env, lambda obs: model.predict(obs, deterministic=True)[0])
-    print(f"\nCVaR_{cvar_alpha}: team return over 20 episodes: random {random_return:.2f}, MADDPG {trained_return:.2f}")
+    name = algorithm.__name__
+    print(f"\n{name} CVaR_{cvar_alpha}: team return over 20 episodes: random {random_return:.2f}, {name} {trained_return:.2f}")
     # Returns are negative distances: the random policy ends about 9 below zero; a clear margin is half of that
     assert trained_return > random_return + 0.5 * abs(random_return)
 

@@ -253,15 +253,40 @@ class BatchedLinear(nn.Module):
         """
         return self.forward_model_major(x.transpose(0, 1)).transpose(0, 1)
 
-    def forward_model_major(self, x: th.Tensor) -> th.Tensor:
+    def forward_model_major(self, x: th.Tensor, models: slice | None = None) -> th.Tensor:
         """
         The same layer on model-major inputs, the layout of the batched product (no transposes).
 
-        :param x: (n_models, B, in_features)
-        :return: (n_models, B, out_features)
+        :param x: (M, B, in_features), M the number of models evaluated
+        :param models: the models to evaluate (all when None)
+        :return: (M, B, out_features)
         """
-        # (n_models, B, in) @ (n_models, in, out) + (n_models, 1, out) -> (n_models, B, out)
-        return th.baddbmm(self.bias.unsqueeze(1), x, self.weight)
+        weight, bias = (self.weight, self.bias) if models is None else (self.weight[models], self.bias[models])
+        # (M, B, in) @ (M, in, out) + (M, 1, out) -> (M, B, out)
+        return th.baddbmm(bias.unsqueeze(1), x, weight)
+
+    def forward_with_block_changes(
+        self, x: th.Tensor, changes: th.Tensor, start: int, models: slice | None = None
+    ) -> th.Tensor:
+        """
+        Model m on the shared input ``x`` in which only the block of input features
+        ``[start + m * k, start + (m + 1) * k)`` is moved by ``changes[m]`` (k = ``changes.shape[-1]``), without
+        building the M changed inputs: the layer is linear, so the output is model m's output on ``x`` plus
+        ``changes[m]`` times the k rows of model m's weight that read that block.
+
+        :param x: the shared input, (B, in_features)
+        :param changes: (M, B, k), one block change per evaluated model
+        :param start: index of model 0's block in the input
+        :param models: the models to evaluate (all when None); their number must be ``changes.shape[0]``
+        :return: (M, B, out_features)
+        """
+        n_models, block = changes.shape[0], changes.shape[-1]
+        weight = self.weight if models is None else self.weight[models]
+        shared = self.forward_model_major(x.unsqueeze(0).expand(n_models, -1, -1), models)
+        # own_rows[m] = the rows of model m's weight that read block m, (M, k, out); a strided view
+        block_rows = weight[:, start : start + n_models * block].view(n_models, n_models, block, -1)
+        own_rows = th.diagonal(block_rows, dim1=0, dim2=1).permute(2, 0, 1)
+        return th.baddbmm(shared, changes, own_rows)
 
     def extra_repr(self) -> str:
         return f"n_models={self.n_models}, in_features={self.in_features}, out_features={self.out_features}"
@@ -316,15 +341,23 @@ class BatchedMlp(nn.Module):
     def _model_major(self, x: th.Tensor) -> th.Tensor:
         return self.model_major_from(x, start=0)
 
-    def model_major_from(self, x: th.Tensor, start: int) -> th.Tensor:
+    def model_major_from(self, x: th.Tensor, start: int, models: slice | None = None) -> th.Tensor:
         """
         The layers ``net[start:]`` on model-major inputs (a caller that computes the first layer its own way
         continues here with ``start=1``).
 
-        :param x: (n_models, B, width) input of layer ``start``
+        :param x: (M, B, width) input of layer ``start``
         :param start: index of the first layer to apply
-        :return: (n_models, B, output_dim)
+        :param models: the models to evaluate (all when None), M of them
+        :return: (M, B, output_dim)
         """
         for layer in self.net[start:]:
-            x = layer.forward_model_major(x) if isinstance(layer, BatchedLinear) else layer(x)
+            x = layer.forward_model_major(x, models) if isinstance(layer, BatchedLinear) else layer(x)
         return x
+
+    @property
+    def first_layer(self) -> BatchedLinear:
+        """The first linear layer (callers that share its input between models compute it their own way)."""
+        first = self.net[0]
+        assert isinstance(first, BatchedLinear)
+        return first

@@ -134,6 +134,7 @@ def check_policy_arguments(
     n_agents: Any,
     share_actor: Any,
     n_quantiles: Any,
+    n_critics: Any,
     net_arch: Any,
     activation_fn: Any,
     features_extractor_class: Any,
@@ -148,6 +149,7 @@ def check_policy_arguments(
     check_int("n_agents", n_agents, 1)
     check_bool("share_actor", share_actor)
     check_int("n_quantiles", n_quantiles, 1)
+    check_int("n_critics", n_critics, 1)
     check_net_arch(net_arch)
     check_subclass("activation_fn", activation_fn, nn.Module)
     check_subclass("features_extractor_class", features_extractor_class, BaseFeaturesExtractor)
@@ -157,16 +159,24 @@ def check_policy_arguments(
     check_optional_dict("optimizer_kwargs", optimizer_kwargs)
 
 
-def check_algorithm_arguments(arguments: dict[str, Any]) -> None:
+def check_off_policy_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
     """
-    Check the arguments of ``MADDPG`` that SB3 would accept silently or let fail deep inside (parameters as in
-    ``MADDPG``; ``policy_kwargs`` are checked again by the policy when it is built).
+    Check the arguments of a multi-agent off-policy algorithm that SB3 would accept silently or let fail deep inside
+    (parameters as in ``MultiAgentOffPolicyAlgorithm``; ``policy_kwargs`` are checked again by the policy when it is
+    built).
 
+    :param algorithm: the algorithm's name, for the messages
     :param arguments: argument name -> value
     """
+    from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
+
     learning_rate = arguments["learning_rate"]
     if not callable(learning_rate):
         check_number("learning_rate", learning_rate, 0.0, low_open=True)
+    for name in ("buffer_size", "batch_size"):
+        value = arguments[name]
+        if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
+            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
     check_int("learning_starts", arguments["learning_starts"], 0)
     check_number("tau", arguments["tau"], 0.0, 1.0)
     check_number("gamma", arguments["gamma"], 0.0, 1.0)
@@ -175,8 +185,15 @@ def check_algorithm_arguments(arguments: dict[str, Any]) -> None:
     action_noise = arguments["action_noise"]
     if action_noise is not None and not isinstance(action_noise, ActionNoise):
         raise TypeError(f"action_noise must be an SB3 ActionNoise or None, got {action_noise!r}")
+    replay_buffer_class = arguments["replay_buffer_class"]
+    if replay_buffer_class is not None and not (
+        isinstance(replay_buffer_class, type) and issubclass(replay_buffer_class, MultiAgentReplayBuffer)
+    ):
+        raise TypeError(
+            f"replay_buffer_class must be MultiAgentReplayBuffer or a subclass ({algorithm} samples joint transitions), "
+            f"got {replay_buffer_class!r}"
+        )
     check_optional_dict("replay_buffer_kwargs", arguments["replay_buffer_kwargs"])
-    check_bool("share_actor", arguments["share_actor"])
     check_int("stats_window_size", arguments["stats_window_size"], 1)
     tensorboard_log = arguments["tensorboard_log"]
     if tensorboard_log is not None and not isinstance(tensorboard_log, str | os.PathLike):
@@ -194,6 +211,39 @@ def check_algorithm_arguments(arguments: dict[str, Any]) -> None:
             th.device(device)
         except RuntimeError as error:
             raise ValueError(f"device must be 'auto', 'cpu', 'cuda', 'cuda:N' or a torch.device, got {device!r}") from error
+
+
+def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
+    """
+    Check the arguments that MADDPG (and MATD3, built on it) adds to the off-policy ones (parameters as in ``MADDPG``).
+
+    :param algorithm: the algorithm's name, for the messages
+    :param arguments: argument name -> value
+    """
+    cvar_alpha = arguments["cvar_alpha"]
+    if isinstance(cvar_alpha, bool) or not isinstance(cvar_alpha, Real) or not 0.0 < cvar_alpha <= 1.0:
+        raise ValueError(f"cvar_alpha must be a number in (0, 1] (1 = risk-neutral mean), got {cvar_alpha!r}")
+    check_bool("share_actor", arguments["share_actor"])
+    policy_kwargs = arguments["policy_kwargs"]
+    if isinstance(policy_kwargs, dict) and "share_actor" in policy_kwargs:
+        raise ValueError(
+            f"share_actor is an argument of {algorithm}, not a policy kwarg: use {algorithm}(..., share_actor=True)"
+        )
+    actor_reg = arguments["actor_reg"]
+    if isinstance(actor_reg, bool) or not isinstance(actor_reg, int | float) or not actor_reg >= 0.0:
+        raise ValueError(f"actor_reg must be a number >= 0 (0 turns the penalty off), got {actor_reg!r}")
+    for name in ("cuda_graph", "bf16_autocast"):
+        if not isinstance(arguments[name], bool):
+            raise TypeError(f"{name} must be True or False, got {arguments[name]!r}")
+    check_int("policy_delay", arguments["policy_delay"], 1)
+    check_int("critic_warmup_steps", arguments["critic_warmup_steps"], 0)
+    if arguments["max_grad_norm"] is not None:
+        check_number("max_grad_norm (None for no clipping)", arguments["max_grad_norm"], low=0.0, low_open=True)
+    check_number("target_policy_noise", arguments["target_policy_noise"], low=0.0)
+    check_number("target_noise_clip", arguments["target_noise_clip"], low=0.0)
+    actor_learning_rate = arguments["actor_learning_rate"]
+    if actor_learning_rate is not None and not callable(actor_learning_rate):
+        check_number("actor_learning_rate (None: learning_rate; or a schedule)", actor_learning_rate, low=0.0, low_open=True)
 
 
 def _check_train_freq(train_freq: Any) -> None:

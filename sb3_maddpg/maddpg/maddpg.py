@@ -1,44 +1,23 @@
-"""MADDPG with centralised quantile critics and a CVaR actor objective, as an SB3 off-policy algorithm."""
+"""MADDPG with centralised quantile critics and a CVaR actor objective, on the multi-agent off-policy base."""
 
 import contextlib
-import io
-import os
-import pathlib
-import pickle
 import warnings
-from collections.abc import Iterable
-from numbers import Real
-from typing import Any, ClassVar, TypeVar
+from typing import Any, ClassVar, NamedTuple, TypeVar
 
 import numpy as np
 import torch as th
-from gymnasium import spaces
-from pettingzoo.utils.env import ParallelEnv
 from stable_baselines3.common.buffers import ReplayBuffer
-from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ConvertCallback, ProgressBarCallback
-from stable_baselines3.common.noise import ActionNoise, VectorizedActionNoise
-from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.preprocessing import get_action_dim
-from stable_baselines3.common.save_util import load_from_pkl
-from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
-from stable_baselines3.common.utils import (
-    FloatSchedule,
-    get_parameters_by_name,
-    should_collect_more_steps,
-)
-from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
+from stable_baselines3.common.utils import FloatSchedule, get_parameters_by_name
 
-from sb3_maddpg.common.atomic import atomic_save
-from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
-from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
-from sb3_maddpg.common.device_buffer import DeviceReplayBuffer, resolve_storage_device
+from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.distributional import cvar, quantile_huber_loss
-from sb3_maddpg.common.model_files import READ_ERRORS, read_maddpg_data
-from sb3_maddpg.common.noise import DecayingGaussianNoise, RowBatchedActionNoise, current_noise_std, set_noise_timestep
-from sb3_maddpg.common.random_state import capture_random_states, restore_random_states
-from sb3_maddpg.common.validation import check_algorithm_arguments, check_int, check_number
-from sb3_maddpg.maddpg.graphed_update import GraphedUpdate
+from sb3_maddpg.common.graphed_update import GraphedUpdate, set_learning_rate
+from sb3_maddpg.common.noise import current_noise_std
+from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
+from sb3_maddpg.common.validation import check_maddpg_arguments
 from sb3_maddpg.maddpg.policies import CnnPolicy, MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentQuantileCritic
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
@@ -47,49 +26,21 @@ SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
 _SATURATED_PREACTIVATION = float(np.arctanh(0.99))
 
 
-def set_learning_rate(optimizer: th.optim.Optimizer, learning_rate: float) -> None:
+class GradientStepStats(NamedTuple):
     """
-    Set an optimizer's learning rate, as SB3's ``update_learning_rate``, but in place where it is a tensor (the
-    capturable optimizers of ``cuda_graph=True``, whose captured step reads the tensor).
-
-    :param optimizer: the optimizer
-    :param learning_rate: the new learning rate
-    """
-    for param_group in optimizer.param_groups:
-        if isinstance(param_group["lr"], th.Tensor):
-            param_group["lr"].fill_(learning_rate)
-        else:
-            param_group["lr"] = learning_rate
-
-
-def _default_agent_names(n_agents: int) -> list[str]:
-    return [f"agent_{i}" for i in range(n_agents)]
-
-
-def _describe_team(names: list[str]) -> str:
-    shown = ", ".join(names) if len(names) <= 8 else f"{', '.join(names[:3])}, ..., {names[-1]}"
-    return f"{len(names)} agent{'s' if len(names) != 1 else ''} ({shown})"
-
-
-def _contains_callback(callback: BaseCallback, callback_class: type[BaseCallback]) -> bool:
-    """Whether ``callback`` is, or holds in a (nested) ``CallbackList``, an instance of ``callback_class``."""
-    if isinstance(callback, callback_class):
-        return True
-    return isinstance(callback, CallbackList) and any(_contains_callback(c, callback_class) for c in callback.callbacks)
-
-
-class JointStepProgressBarCallback(ProgressBarCallback):
-    """
-    SB3's progress bar counting MADDPG's timesteps: one VecEnv step advances it by ``n_copies`` (one timestep per
-    joint step of each environment copy), not by the number of VecEnv rows.
+    What one gradient step reports, per agent (each (N,)); the actor's fields are None in a step without an actor
+    update. ``train`` logs their means as ``train/<field>_<agent>``.
     """
 
-    def _on_step(self) -> bool:
-        self.pbar.update(self.model.n_copies)  # type: ignore[attr-defined]
-        return True
+    critic_loss: th.Tensor
+    q_mean: th.Tensor  # mean quantile of the batch's joint actions
+    cvar: th.Tensor  # CVaR_alpha of the batch's joint actions
+    actor_loss: th.Tensor | None = None
+    actor_saturation: th.Tensor | None = None  # the fraction of actor outputs within 1 % of a bound
+    actor_preactivation: th.Tensor | None = None  # the mean |pre-tanh output|
 
 
-class MADDPG(OffPolicyAlgorithm):
+class MADDPG(MultiAgentOffPolicyAlgorithm):
     """
     Multi-Agent DDPG with centralised quantile critics and a CVaR_alpha actor objective.
 
@@ -97,13 +48,14 @@ class MADDPG(OffPolicyAlgorithm):
     outputs at the midpoints tau_j = (j + 0.5) / n, trained with the quantile Huber loss (kappa = 1) towards
     r_i + gamma (1 - d) Z_i'(o', a'), a'_j = mu_j'(o'_j); actor i maximises CVaR_alpha(Z_i(o, a)) with
     a_i = mu_i(o_i) and the other agents' actions from the batch (MADDPG: Lowe et al. 2017, https://arxiv.org/abs/1706.02275;
-    quantile critics: QR-DQN, Dabney et al. 2018, https://arxiv.org/abs/1710.10044).
+    quantile critics: QR-DQN, Dabney et al. 2018, https://arxiv.org/abs/1710.10044). With several critic networks per
+    agent (``policy_kwargs=dict(n_critics=2)``, what ``MATD3`` does) the target takes the smaller of the target
+    networks' values at each quantile level.
 
     The environment is an SB3 VecEnv with one row per agent and copy, row = copy * n_agents + agent
-    (see ``make_multiagent_vec_env``). One timestep is one joint step of one environment copy: each VecEnv step
-    adds ``n_copies`` to ``num_timesteps``; ``total_timesteps``, ``learning_starts``, ``buffer_size``, the progress
-    bar and TensorBoard's x-axis count these. ``train_freq=(k, "step")`` means every k VecEnv steps, and callbacks
-    are called once per VecEnv step, as in SB3.
+    (see ``make_multiagent_vec_env``); the team, the timestep (one joint step of one environment copy), the rollout
+    loop, the replay buffer and saving are ``MultiAgentOffPolicyAlgorithm``'s. This class holds MADDPG's arguments,
+    its networks, its two losses, one gradient step and ``train``.
 
     :param policy: the policy model to use (MlpPolicy, CnnPolicy, ...)
     :param env: the VecEnv to learn from (can be None to load a trained model)
@@ -164,7 +116,6 @@ class MADDPG(OffPolicyAlgorithm):
     actor_target: MultiAgentActor
     critic: MultiAgentQuantileCritic
     critic_target: MultiAgentQuantileCritic
-    replay_buffer: MultiAgentReplayBuffer | None  # type: ignore[assignment]
 
     def __init__(
         self,
@@ -201,66 +152,26 @@ class MADDPG(OffPolicyAlgorithm):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ) -> None:
-        check_algorithm_arguments(
+        check_maddpg_arguments(
+            type(self).__name__,
             dict(
-                learning_rate=learning_rate,
-                learning_starts=learning_starts,
-                tau=tau,
-                gamma=gamma,
-                train_freq=train_freq,
-                gradient_steps=gradient_steps,
-                action_noise=action_noise,
-                replay_buffer_kwargs=replay_buffer_kwargs,
+                cvar_alpha=cvar_alpha,
+                actor_reg=actor_reg,
+                policy_delay=policy_delay,
+                critic_warmup_steps=critic_warmup_steps,
+                actor_learning_rate=actor_learning_rate,
+                max_grad_norm=max_grad_norm,
+                target_policy_noise=target_policy_noise,
+                target_noise_clip=target_noise_clip,
                 share_actor=share_actor,
-                stats_window_size=stats_window_size,
-                tensorboard_log=tensorboard_log,
+                cuda_graph=cuda_graph,
+                bf16_autocast=bf16_autocast,
                 policy_kwargs=policy_kwargs,
-                verbose=verbose,
-                seed=seed,
-                device=device,
-            )
+            ),
         )
-        if isinstance(cvar_alpha, bool) or not isinstance(cvar_alpha, Real) or not 0.0 < cvar_alpha <= 1.0:
-            raise ValueError(f"cvar_alpha must be a number in (0, 1] (1 = risk-neutral mean), got {cvar_alpha!r}")
-        for name, value in (("buffer_size", buffer_size), ("batch_size", batch_size)):
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        if replay_buffer_class is not None and not (
-            isinstance(replay_buffer_class, type) and issubclass(replay_buffer_class, MultiAgentReplayBuffer)
-        ):
-            raise TypeError(
-                "replay_buffer_class must be MultiAgentReplayBuffer or a subclass (MADDPG samples joint transitions), "
-                f"got {replay_buffer_class!r}"
-            )
-        if policy_kwargs is not None and "share_actor" in policy_kwargs:
-            raise ValueError("share_actor is an argument of MADDPG, not a policy kwarg: use MADDPG(..., share_actor=True)")
-        if isinstance(actor_reg, bool) or not isinstance(actor_reg, int | float) or not actor_reg >= 0.0:
-            raise ValueError(f"actor_reg must be a number >= 0 (0 turns the penalty off), got {actor_reg!r}")
-        for name, flag in (("cuda_graph", cuda_graph), ("bf16_autocast", bf16_autocast)):
-            if not isinstance(flag, bool):
-                raise TypeError(f"{name} must be True or False, got {flag!r}")
-        check_int("policy_delay", policy_delay, 1)
-        check_int("critic_warmup_steps", critic_warmup_steps, 0)
-        if max_grad_norm is not None:
-            check_number("max_grad_norm (None for no clipping)", max_grad_norm, low=0.0, low_open=True)
-        check_number("target_policy_noise", target_policy_noise, low=0.0)
-        check_number("target_noise_clip", target_noise_clip, low=0.0)
-        if actor_learning_rate is not None and not callable(actor_learning_rate):
-            check_number(
-                "actor_learning_rate (None: learning_rate; or a schedule)", actor_learning_rate, low=0.0, low_open=True
-            )
-        if isinstance(env, ParallelEnv):
-            raise TypeError(
-                "MADDPG takes an SB3 VecEnv with one row per agent, not a PettingZoo ParallelEnv: "
-                "wrap it with sb3_maddpg.make_multiagent_vec_env(env_fn, n_envs=...)"
-            )
-        if env is not None and not isinstance(env, str) and not isinstance(env.action_space, spaces.Box):
-            raise TypeError(f"MADDPG accepts Box (continuous) action spaces, got {env.action_space}")
-        if env is not None and not isinstance(env, str) and not isinstance(env.observation_space, spaces.Box):
-            raise TypeError(f"MADDPG accepts Box observation spaces (vectors or images), got {env.observation_space}")
         super().__init__(
             policy,
-            env,  # type: ignore[arg-type]
+            env,
             learning_rate,
             buffer_size,
             learning_starts,
@@ -272,15 +183,13 @@ class MADDPG(OffPolicyAlgorithm):
             action_noise=action_noise,
             replay_buffer_class=replay_buffer_class,
             replay_buffer_kwargs=replay_buffer_kwargs,
+            n_agents=n_agents,
             policy_kwargs=policy_kwargs,
             stats_window_size=stats_window_size,
             tensorboard_log=tensorboard_log,
             verbose=verbose,
             device=device,
             seed=seed,
-            sde_support=False,
-            supported_action_spaces=(spaces.Box,),
-            support_multi_env=True,
         )
         self.cvar_alpha = float(cvar_alpha)
         self.actor_reg = float(actor_reg)
@@ -291,14 +200,6 @@ class MADDPG(OffPolicyAlgorithm):
         self.target_policy_noise = float(target_policy_noise)
         self.target_noise_clip = float(target_noise_clip)
         self.share_actor = share_actor
-        storage = self.replay_buffer_kwargs.get("storage_device")
-        if storage is not None and not (isinstance(storage, str) and storage == "auto"):
-            storage = resolve_storage_device(storage)  # a clear error when torch cannot use it here
-            if storage.type != self.device.type:
-                raise ValueError(
-                    f"replay_buffer_kwargs' storage_device={str(storage)!r} must be the model's device ({self.device}): "
-                    "the buffer is sampled where the networks train"
-                )
         if cuda_graph and self.device.type != "cuda":
             raise ValueError(
                 f"cuda_graph=True records the update as a CUDA graph and needs device='cuda', got device={self.device!s}; "
@@ -306,120 +207,19 @@ class MADDPG(OffPolicyAlgorithm):
             )
         self.cuda_graph = cuda_graph
         self.bf16_autocast = bf16_autocast
-        self.n_agents: int | None = n_agents
-        self.agent_names: list[str] | None = None
-        if self.env is not None:
-            self._read_agents(self.env, n_agents)
 
         if _init_setup_model:
             self._setup_model()
 
-    @property
-    def n_copies(self) -> int:
-        """Number of environment copies: VecEnv rows / n_agents."""
-        assert self.n_agents is not None
-        return self.n_envs // self.n_agents
-
-    def _read_agents(self, env: VecEnv, n_agents: int | None) -> None:
-        """Set ``n_agents`` and ``agent_names`` from the env (or the argument) and check the VecEnv's rows and team."""
-        env_n_agents = getattr(env, "n_agents", None)
-        if n_agents is not None:
-            check_int("n_agents", n_agents, 1)
-        names = getattr(env, "possible_agents", None)
-        if env_n_agents is not None and n_agents is not None and env_n_agents != n_agents:
-            if self.agent_names is not None and names is not None:
-                # a model that knows its team (loaded, or set_env) on a VecEnv of another team
-                self.check_team([str(name) for name in names], "the VecEnv")
-            raise ValueError(f"n_agents={n_agents} disagrees with the env's n_agents={env_n_agents}")
-        n_agents = n_agents if n_agents is not None else env_n_agents
-        if n_agents is None:
-            n_agents = self.n_agents  # restored by load()
-        if n_agents is None:
-            raise ValueError(
-                "MADDPG needs the number of agents: build the env with sb3_maddpg.make_multiagent_vec_env "
-                "(it sets `n_agents`) or pass n_agents=..."
-            )
-        if env.num_envs % n_agents != 0:
-            raise ValueError(
-                f"the VecEnv has {env.num_envs} rows, which is not a multiple of n_agents={n_agents}; "
-                "rows must be agent-major inside each copy (row = copy * n_agents + agent)"
-            )
-        self.n_agents = int(n_agents)
-        if names is not None and len(names) == self.n_agents:
-            names = [str(name) for name in names]
-            if self.agent_names is not None and self.agent_names != _default_agent_names(self.n_agents):
-                self.check_team(names, "the VecEnv")
-            self.agent_names = names
-        elif self.agent_names is None or len(self.agent_names) != self.n_agents:
-            self.agent_names = _default_agent_names(self.n_agents)
-
-    def check_team(self, names: list[str], where: str) -> None:
-        """
-        Refuse a team other than the model's: a model of N agents reads the rows of a larger team as several copies
-        of its own, and would act and report plausible but wrong numbers.
-
-        :param names: the agents of the VecEnv (or observations) the model is asked to act on, in row order
-        :param where: what holds them, for the message
-        :raises ValueError: naming both teams
-        """
-        assert self.n_agents is not None
-        own = self.agent_names or _default_agent_names(self.n_agents)
-        same_names = own == names or own == _default_agent_names(self.n_agents)
-        if len(names) != self.n_agents or not same_names:
-            raise ValueError(
-                f"this MADDPG model acts for a team of {_describe_team(own)}, but {where} has a team of "
-                f"{_describe_team(names)}; use an env with the model's team (the same agents and n_agents)"
-            )
+    def _policy_arguments(self) -> dict[str, Any]:
+        return dict(share_actor=self.share_actor)
 
     def _setup_model(self) -> None:
-        # As OffPolicyAlgorithm._setup_model, but the replay buffer is only allocated when there is an env to fill
-        # it, so that load() without an env (to act) does not allocate a full-size buffer.
-        if self.env is not None:
-            self._read_agents(self.env, self.n_agents)
-        if self.n_agents is None:
-            raise ValueError("MADDPG needs an env or n_agents=... to build its networks")
-        if self.agent_names is None:
-            self.agent_names = [f"agent_{i}" for i in range(self.n_agents)]
-        self._setup_lr_schedule()
+        super()._setup_model()
         self.actor_lr_schedule = (
             self.lr_schedule if self.actor_learning_rate is None else FloatSchedule(self.actor_learning_rate)
         )
-        self.set_random_seed(self.seed)
-
-        if self.replay_buffer_class is None:
-            # replay_buffer_kwargs=dict(storage_device=...) keeps the buffer on that device (DeviceReplayBuffer)
-            on_device = "storage_device" in self.replay_buffer_kwargs
-            self.replay_buffer_class = DeviceReplayBuffer if on_device else MultiAgentReplayBuffer
-        if "storage_device" in self.replay_buffer_kwargs:
-            self._check_storage_device()
-        self.replay_buffer_kwargs["n_agents"] = self.n_agents
-        if self.replay_buffer is None and self.env is not None:
-            self._make_replay_buffer()
-
-        if self.action_noise is None:
-            action_dim = int(np.prod(self.action_space.shape))
-            self.action_noise = DecayingGaussianNoise(mean=np.zeros(action_dim), sigma=1.0, final_sigma=0.1)
-
-        self.policy = self.policy_class(  # type: ignore[assignment]
-            self.observation_space,
-            self.action_space,
-            self.lr_schedule,
-            n_agents=self.n_agents,
-            share_actor=self.share_actor,
-            **self.policy_kwargs,
-        )
-        self.policy = self.policy.to(self.device)
-        self._convert_train_freq()
         self._create_aliases()
-        self._collect_target_pairs()
-        self._graphed_update: GraphedUpdate | None = None
-        if self.cuda_graph and self.device.type == "cuda":
-            self._graphed_update = GraphedUpdate(self)
-        elif self.cuda_graph:
-            # a model trained with CUDA graphs, loaded on another device: the same update, run eagerly
-            warnings.warn(f"cuda_graph=True needs CUDA; this model is on {self.device}, so its updates run eagerly")
-
-    def _collect_target_pairs(self) -> None:
         # Online and target tensors in matching order, for the fused soft update; BatchNorm running statistics are
         # copied to the targets at every target update (see TD3)
         self._online_parameters = [*self.critic.parameters(), *self.actor.parameters()]
@@ -432,39 +232,12 @@ class MADDPG(OffPolicyAlgorithm):
             *get_parameters_by_name(self.critic_target, ["running_"]),
             *get_parameters_by_name(self.actor_target, ["running_"]),
         ]
-
-    def _check_storage_device(self) -> None:
-        """
-        The device buffer is sampled where the networks train: its storage follows the model's device. A model
-        loaded onto another device (a GPU model on a CPU machine) keeps its buffer there instead, with a warning.
-        """
-        assert self.replay_buffer_class is not None
-        if not issubclass(self.replay_buffer_class, DeviceReplayBuffer):
-            raise ValueError(
-                "replay_buffer_kwargs' storage_device needs the DeviceReplayBuffer (the default when it is given), "
-                f"got replay_buffer_class={self.replay_buffer_class.__name__}"
-            )
-        storage = self.replay_buffer_kwargs["storage_device"]
-        if isinstance(storage, str) and storage == "auto":
-            storage = self.device
-        if th.device(storage).type != self.device.type:
-            warnings.warn(
-                f"the replay buffer's storage_device {storage} is not this model's device: it is kept on {self.device}"
-            )
-            storage = self.device
-        self.replay_buffer_kwargs["storage_device"] = storage
-
-    def _make_replay_buffer(self) -> None:
-        assert self.replay_buffer_class is not None
-        self.replay_buffer = self.replay_buffer_class(  # type: ignore[assignment]
-            self.buffer_size,
-            self.observation_space,
-            self.action_space,
-            device=self.device,
-            n_envs=self.n_envs,
-            optimize_memory_usage=self.optimize_memory_usage,
-            **self.replay_buffer_kwargs,
-        )
+        self._graphed_update: GraphedUpdate | None = None
+        if self.cuda_graph and self.device.type == "cuda":
+            self._graphed_update = GraphedUpdate(self._gradient_step, [self.critic.optimizer, self.actor.optimizer])
+        elif self.cuda_graph:
+            # a model trained with CUDA graphs, loaded on another device: the same update, run eagerly
+            warnings.warn(f"cuda_graph=True needs CUDA; this model is on {self.device}, so its updates run eagerly")
 
     def _create_aliases(self) -> None:
         self.actor = self.policy.actor
@@ -472,46 +245,14 @@ class MADDPG(OffPolicyAlgorithm):
         self.critic = self.policy.critic
         self.critic_target = self.policy.critic_target
 
-    def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
-        names = getattr(env, "possible_agents", None)
-        if names is not None:
-            self.check_team([str(name) for name in names], "the VecEnv")
-        super().set_env(env, force_reset=force_reset)
-        assert self.env is not None
-        self._read_agents(self.env, self.n_agents)
-
-    def predict(
-        self,
-        observation: np.ndarray | dict[str, np.ndarray],
-        state: tuple[np.ndarray, ...] | None = None,
-        episode_start: np.ndarray | None = None,
-        deterministic: bool = False,
-    ) -> tuple[np.ndarray, tuple[np.ndarray, ...] | None]:
-        """
-        Actions of SB3's rows (row = copy * n_agents + agent; row r is acted on by actor r mod n_agents).
-
-        Observations from ``make_multiagent_vec_env`` carry their team (:class:`~sb3_maddpg.common.vec_env.AgentRows`):
-        those of another team than the model's are refused, wherever they come from (``evaluate_policy``, RL Zoo's
-        ``enjoy``, a loop of your own).
-
-        :param observation: the observation rows
-        :param state: unused (no recurrent policy)
-        :param episode_start: unused
-        :param deterministic: unused: the actors are deterministic, exploration noise is added during ``learn``
-        :return: the actions and None
-        """
-        names = getattr(observation, "possible_agents", None)
-        if names is not None:
-            self.check_team(list(names), "the observations' VecEnv")
-        return super().predict(observation, state, episode_start, deterministic)
-
     def critic_loss(self, replay_data: MultiAgentReplayBufferSamples) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
         """
         Per-agent critic loss on a batch (no optimizer step).
 
         :param replay_data: a batch of B joint transitions
-        :return: the loss of each critic (N,), the critics' quantiles on the batch's actions (B, N, n_quantiles),
-            and the critic-side encodings of the observations (B, N, F), which the actor loss reuses
+        :return: the loss of each agent's critic (N,) (the sum over its networks), the quantiles of each critic's
+            first network on the batch's actions (B, N, n_quantiles), and the critic-side encodings of the
+            observations (B, N, F), which the actor loss reuses
         """
         with th.no_grad():
             # Target distribution (SPEC 2): r_i + gamma (1 - d) Z_i'(o', a'), a'_j = mu_j'(o'_j) from the target actors
@@ -521,17 +262,18 @@ class MADDPG(OffPolicyAlgorithm):
                 noise = next_actions.new_empty(next_actions.shape).normal_(0.0, self.target_policy_noise)
                 noise = noise.clamp(-self.target_noise_clip, self.target_noise_clip)
                 next_actions = (next_actions + noise).clamp(-1.0, 1.0)
-            next_quantiles = self.critic_target(replay_data.next_observations, next_actions)  # (B, N, n_q)
+            # With several critic networks (MATD3's twins): the smaller value at each quantile level (clipped double Q)
+            next_quantiles = self.critic_target.all_quantiles(replay_data.next_observations, next_actions).min(dim=0).values
             not_done = 1.0 - replay_data.dones.unsqueeze(-1)  # (B, 1, 1): terminations only, not truncations
             target_quantiles = replay_data.rewards.unsqueeze(-1) + not_done * self.gamma * next_quantiles
 
         # Each agent's observation is encoded once; every critic reads all encodings
         features = self.critic.encode(replay_data.observations)  # (B, N, F)
-        current_quantiles = self.critic.quantiles_from_features(features, replay_data.actions)  # (B, N, n_q)
+        all_quantiles = self.critic.all_quantiles_from_features(features, replay_data.actions)  # (n_critics, B, N, n_q)
         # Quantile regression (QR-DQN): quantile Huber loss, kappa = 1, at the midpoints; mean over the batch
-        # (in float32 also under bf16 autocast)
-        loss = quantile_huber_loss(current_quantiles.float(), target_quantiles.float()).mean(dim=0)  # (N,)
-        return loss, current_quantiles, features
+        # (in float32 also under bf16 autocast); each critic network is fitted to the same target
+        losses = [quantile_huber_loss(quantiles.float(), target_quantiles.float()).mean(dim=0) for quantiles in all_quantiles]
+        return sum(losses[1:], losses[0]), all_quantiles[0], features  # (N,), (B, N, n_q), (B, N, F)
 
     def actor_loss(
         self, replay_data: MultiAgentReplayBufferSamples, features: th.Tensor, preactivations: th.Tensor | None = None
@@ -567,7 +309,7 @@ class MADDPG(OffPolicyAlgorithm):
 
     def _gradient_step(
         self, replay_data: MultiAgentReplayBufferSamples, update_actor: bool, update_targets: bool
-    ) -> tuple[th.Tensor, ...]:
+    ) -> GradientStepStats:
         """
         One gradient step on one batch: the critics; then, if ``update_actor``, the actors; then, if
         ``update_targets``, the soft target updates. Nothing in it waits for the device or branches on a tensor's
@@ -576,8 +318,7 @@ class MADDPG(OffPolicyAlgorithm):
         :param replay_data: a batch of joint transitions
         :param update_actor: take an actor step after the critic step
         :param update_targets: soft-update the target networks at the end
-        :return: per-agent statistics, each (N,): critic loss, mean quantile, CVaR of the batch's actions, and with
-            an actor step also the actor loss, the saturation and the mean |pre-tanh output|
+        :return: the step's per-agent statistics (the actor's only with an actor step)
         """
         # Critics: the sum of the per-critic losses gives each critic the gradient of its own loss
         with self._autocast():
@@ -588,11 +329,11 @@ class MADDPG(OffPolicyAlgorithm):
         self.critic.optimizer.step()
         with th.no_grad():
             current_quantiles = current_quantiles.detach().float()
-            stats = [
-                critic_loss.detach(),
-                current_quantiles.mean(dim=(0, 2)),
-                cvar(current_quantiles, self.cvar_alpha).mean(dim=0),
-            ]
+            stats = GradientStepStats(
+                critic_loss=critic_loss.detach(),
+                q_mean=current_quantiles.mean(dim=(0, 2)),
+                cvar=cvar(current_quantiles, self.cvar_alpha).mean(dim=0),
+            )
 
         if update_actor:
             # Actor i maximises CVaR_alpha of Z_i with a_i = mu_i(o_i), after the critic step as in TD3.
@@ -606,12 +347,12 @@ class MADDPG(OffPolicyAlgorithm):
             self.actor.optimizer.step()
             with th.no_grad():
                 preactivations = preactivations.detach().float()
-                stats += [
-                    actor_loss.detach(),
+                stats = stats._replace(
+                    actor_loss=actor_loss.detach(),
                     # Saturation: where tanh passes (almost) no gradient, an actor can get stuck at a bound
-                    (preactivations.abs() > _SATURATED_PREACTIVATION).float().mean(dim=(0, 2)),
-                    preactivations.abs().mean(dim=(0, 2)),
-                ]
+                    actor_saturation=(preactivations.abs() > _SATURATED_PREACTIVATION).float().mean(dim=(0, 2)),
+                    actor_preactivation=preactivations.abs().mean(dim=(0, 2)),
+                )
 
         if update_targets:
             # Soft target updates (as SB3's polyak_update, in one fused call per network); BatchNorm running
@@ -620,7 +361,7 @@ class MADDPG(OffPolicyAlgorithm):
                 th._foreach_lerp_(self._target_parameters, self._online_parameters, self.tau)
                 for running, running_target in zip(self._online_batch_norm_stats, self._target_batch_norm_stats, strict=True):
                     running_target.copy_(running)
-        return tuple(stats)
+        return stats
 
     def train(self, gradient_steps: int, batch_size: int = 100) -> None:
         # Switch to train mode (this affects batch norm / dropout)
@@ -633,32 +374,28 @@ class MADDPG(OffPolicyAlgorithm):
         self.logger.record("train/actor_learning_rate", actor_lr)
         assert self.replay_buffer is not None
 
-        critic_stats: list[tuple[th.Tensor, ...]] = []
-        actor_stats: list[tuple[th.Tensor, ...]] = []
+        steps: list[GradientStepStats] = []
         for _ in range(gradient_steps):
             self._n_updates += 1
             replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
             # Actors and targets once every policy_delay critic updates (TD3); no actor update during the warm-up
             update_targets = self._n_updates % self.policy_delay == 0
             update_actor = update_targets and self._n_updates > self.critic_warmup_steps
-            if self._graphed_update is not None:
-                stats = self._graphed_update.step(replay_data, update_actor, update_targets)
-            else:
-                stats = self._gradient_step(replay_data, update_actor, update_targets)
-            critic_stats.append(stats[:3])
-            if update_actor:
-                actor_stats.append(stats[3:])
+            step = self._gradient_step if self._graphed_update is None else self._graphed_update.step
+            steps.append(step(replay_data, update_actor, update_targets))
 
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         if gradient_steps == 0:
             return
-        # One device-to-host transfer for all statistics: (k, N)
-        columns = [th.stack(values) for values in zip(*critic_stats, strict=True)]
-        names = ["critic_loss", "q_mean", "cvar"]
-        if actor_stats:
-            columns += [th.stack(values) for values in zip(*actor_stats, strict=True)]
-            names += ["actor_loss", "actor_saturation", "actor_preactivation"]
-        stats_np = th.stack([column.float().mean(dim=0) for column in columns]).cpu().numpy()
+        # The mean of each statistic over the steps that have it (the actor's: the steps with an actor update),
+        # moved to the host in one transfer: (n_statistics, N)
+        names, columns = [], []
+        for name in GradientStepStats._fields:
+            values = [getattr(stats, name) for stats in steps if getattr(stats, name) is not None]
+            if values:
+                names.append(name)
+                columns.append(th.stack(values).float().mean(dim=0))
+        stats_np = th.stack(columns).cpu().numpy()
         assert self.agent_names is not None
         for row, key in enumerate(names):
             for i, name in enumerate(self.agent_names):
@@ -668,181 +405,6 @@ class MADDPG(OffPolicyAlgorithm):
         noise_std = current_noise_std(self.action_noise)
         if noise_std is not None:
             self.logger.record("train/noise_std", noise_std)
-
-    def _sample_action(
-        self, learning_starts: int, action_noise: ActionNoise | None = None, n_envs: int = 1
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """
-        As ``OffPolicyAlgorithm._sample_action`` (random actions before ``learning_starts``, then the actors plus
-        the exploration noise, clipped to [-1, 1]), with the actors' [-1, 1] outputs used as they are: SB3 goes
-        through ``predict``, which maps them to the action space's bounds, and maps them back at once.
-
-        :param learning_starts: timesteps of random actions before learning starts
-        :param action_noise: exploration noise added to the actors' outputs
-        :param n_envs: number of VecEnv rows
-        :return: the actions to take in the env and the [-1, 1] actions to store in the replay buffer
-        """
-        if self.num_timesteps < learning_starts or not isinstance(self.action_space, spaces.Box):
-            return super()._sample_action(learning_starts, action_noise, n_envs)
-        assert self._last_obs is not None, "self._last_obs was not set"
-        self.policy.set_training_mode(False)
-        observations, _ = self.policy.obs_to_tensor(self._last_obs)
-        with th.no_grad():
-            scaled_action = self.policy._predict(observations).cpu().numpy().reshape((-1, *self.action_space.shape))
-        if action_noise is not None:
-            scaled_action = np.clip(scaled_action + action_noise(), -1, 1)
-        return self.policy.unscale_action(scaled_action), scaled_action
-
-    def collect_rollouts(
-        self,
-        env: VecEnv,
-        callback: BaseCallback,
-        train_freq: TrainFreq,
-        replay_buffer: ReplayBuffer,
-        action_noise: ActionNoise | None = None,
-        learning_starts: int = 0,
-        log_interval: int | None = None,
-    ) -> RolloutReturn:
-        """
-        Collect experiences and store them into the replay buffer.
-
-        Overridden from ``OffPolicyAlgorithm.collect_rollouts`` only to count MADDPG's timestep (one joint step of
-        one env copy: ``num_timesteps += n_copies`` per VecEnv step, where SB3 adds the number of rows) and one
-        episode per copy (SB3 would count one per agent row); the rest is SB3's code.
-
-        :param env: the training environment
-        :param callback: callback called at each VecEnv step (and at the beginning and end of the rollout)
-        :param train_freq: how much experience to collect: VecEnv steps, or episodes with one env copy
-        :param replay_buffer: the replay buffer
-        :param action_noise: action noise for exploration
-        :param learning_starts: timesteps of random actions before learning starts
-        :param log_interval: log data every ``log_interval`` episodes
-        :return: timesteps and episodes collected, and whether to continue training
-        """
-        # Switch to eval mode (this affects batch norm / dropout)
-        self.policy.set_training_mode(False)
-
-        num_collected_steps, num_collected_episodes = 0, 0
-        n_copies, n_agents = self.n_copies, self.n_agents
-        assert n_agents is not None
-
-        assert isinstance(env, VecEnv), "You must pass a VecEnv"
-        assert train_freq.frequency > 0, "Should at least collect one step or episode."
-        if n_copies > 1 and train_freq.unit != TrainFrequencyUnit.STEP:
-            raise ValueError("train_freq in episodes needs a single environment copy; use (k, 'step') with several copies")
-
-        callback.on_rollout_start()
-        continue_training = True
-        while should_collect_more_steps(train_freq, num_collected_steps, num_collected_episodes):
-            # Select action randomly or according to policy; the noise schedule follows the timestep counter
-            set_noise_timestep(action_noise, self.num_timesteps)
-            actions, buffer_actions = self._sample_action(learning_starts, action_noise, env.num_envs)
-
-            # Rescale and perform action
-            new_obs, rewards, dones, infos = env.step(actions)
-
-            self.num_timesteps += n_copies
-            num_collected_steps += 1
-
-            # Give access to local variables
-            callback.update_locals(locals())
-            # Only stop training if return value is False, not when it is None.
-            if not callback.on_step():
-                return RolloutReturn(num_collected_steps * n_copies, num_collected_episodes, continue_training=False)
-
-            # Retrieve reward and episode length (episode statistics come once per joint episode)
-            self._update_info_buffer(infos, dones)
-
-            # Store data in replay buffer (normalized action and unnormalized observation)
-            self._store_transition(replay_buffer, buffer_actions, new_obs, rewards, dones, infos)  # type: ignore[arg-type]
-
-            self._update_current_progress_remaining(self.num_timesteps, self._total_timesteps)
-            self._on_step()
-
-            for copy in np.flatnonzero(np.asarray(dones).reshape(n_copies, n_agents).any(axis=1)):
-                # Update stats: one episode per copy
-                num_collected_episodes += 1
-                self._episode_num += 1
-
-                if action_noise is not None:
-                    kwargs = dict(indices=list(range(copy * n_agents, (copy + 1) * n_agents))) if env.num_envs > 1 else {}
-                    action_noise.reset(**kwargs)
-
-                # Log training infos
-                if log_interval is not None and self._episode_num % log_interval == 0:
-                    self.dump_logs()
-        callback.on_rollout_end()
-
-        return RolloutReturn(num_collected_steps * n_copies, num_collected_episodes, continue_training)
-
-    def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
-        # As BaseAlgorithm._init_callback, with a progress bar that counts MADDPG's timesteps, and the
-        # environment's episode-end metrics (coverage, fairness, ...) logged in every run unless already asked for
-        if isinstance(callback, list):
-            callback = CallbackList(callback)
-        if not isinstance(callback, BaseCallback):
-            callback = ConvertCallback(callback)
-        if not _contains_callback(callback, EpisodeMetricsCallback):
-            callback = CallbackList([callback, EpisodeMetricsCallback()])
-        if progress_bar:
-            callback = CallbackList([callback, JointStepProgressBarCallback()])
-        callback.init_callback(self)
-        return callback
-
-    def _setup_learn(
-        self,
-        total_timesteps: int,
-        callback: MaybeCallback = None,
-        reset_num_timesteps: bool = True,
-        tb_log_name: str = "run",
-        progress_bar: bool = False,
-    ) -> tuple[int, BaseCallback]:
-        assert self.env is not None, "You must set the environment before calling learn()"
-        # A model loaded without an env gets its replay buffer when it is first trained
-        if self.replay_buffer is None:
-            self._make_replay_buffer()
-        if isinstance(self.replay_buffer, DeviceReplayBuffer) and self._vec_normalize_env is not None:
-            raise ValueError(
-                "the device replay buffer (storage_device) does not normalise with VecNormalize; "
-                "use the default replay buffer with a VecNormalize env"
-            )
-        # A saved per-row noise does not fit an env with another number of rows (load(path, env) with more copies)
-        if isinstance(self.action_noise, VectorizedActionNoise) and self.action_noise.n_envs != self.env.num_envs:
-            self.action_noise = RowBatchedActionNoise(self.action_noise.noises[0], self.env.num_envs)
-        # One noise per VecEnv row, drawn in one call (SB3 would wrap it in VectorizedActionNoise, drawn row by row)
-        noise = self.action_noise
-        if noise is not None and self.env.num_envs > 1 and not isinstance(noise, VectorizedActionNoise):
-            self.action_noise = RowBatchedActionNoise(self.action_noise, self.env.num_envs)
-        return super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
-
-    def learn(
-        self: SelfMADDPG,
-        total_timesteps: int,
-        callback: MaybeCallback = None,
-        log_interval: int = 4,
-        tb_log_name: str = "MADDPG",
-        reset_num_timesteps: bool = True,
-        progress_bar: bool = False,
-    ) -> SelfMADDPG:
-        """
-        Train the model.
-
-        :param total_timesteps: timesteps to train on (joint steps of one env copy; a lower bound, as in SB3)
-        :param callback: callback(s) called at every VecEnv step
-        :param log_interval: log every ``log_interval`` episodes (joint episodes of a copy)
-        :param tb_log_name: the name of the run for TensorBoard logging
-        :param reset_num_timesteps: whether or not to reset the current timestep number (used in logging)
-        :param progress_bar: display a progress bar (in timesteps) using tqdm and rich
-        :return: the trained model
-        """
-        return super().learn(
-            total_timesteps=total_timesteps,
-            callback=callback,
-            log_interval=log_interval,
-            tb_log_name=tb_log_name,
-            reset_num_timesteps=reset_num_timesteps,
-            progress_bar=progress_bar,
-        )
 
     def _excluded_save_params(self) -> list[str]:
         return [
@@ -857,127 +419,6 @@ class MADDPG(OffPolicyAlgorithm):
             "_target_batch_norm_stats",
             "_graphed_update",
         ]
-
-    def save(
-        self,
-        path: str | pathlib.Path | io.BufferedIOBase,
-        exclude: Iterable[str] | None = None,
-        include: Iterable[str] | None = None,
-    ) -> None:
-        """
-        Save the model as SB3 does (a zip of the class parameters and the networks), atomically: it is written to a
-        temporary file in the same folder and moved into place, so an interrupted save leaves the previous file whole.
-        The random states (Python, NumPy, PyTorch, the action space, the env copies' last resets) are saved with it,
-        and ``load`` restores them: see ``sb3_maddpg.common.random_state``.
-
-        :param path: the file (``.zip`` is added when the name has no suffix), or an open binary file
-        :param exclude: names of parameters to leave out, in addition to the default ones
-        :param include: names of parameters to save although they are excluded by default
-        """
-        self._saved_random_states = capture_random_states(self)
-        try:
-            base_save = super().save
-            atomic_save(lambda file: base_save(file, exclude=exclude, include=include), path, suffix="zip")
-        finally:
-            del self._saved_random_states
-
-    @classmethod
-    def load(  # type: ignore[override]
-        cls: type[SelfMADDPG],
-        path: str | pathlib.Path | io.BufferedIOBase,
-        env: GymEnv | None = None,
-        device: th.device | str = "auto",
-        custom_objects: dict[str, Any] | None = None,
-        print_system_info: bool = False,
-        force_reset: bool = True,
-        **kwargs: Any,
-    ) -> SelfMADDPG:
-        """
-        Load a model saved by ``save`` (as SB3's ``load``), after checking that the file is an intact MADDPG model,
-        and restore the random states saved with it (the generators continue where they were when it was saved;
-        call ``set_random_seed`` afterwards to reseed instead). With ``env``, the env must have the model's team.
-
-        :param path: the model file (``.zip`` may be left out) or an open binary file
-        :param env: the environment to act and learn on (None: only to predict)
-        :param device: the device of the networks
-        :param custom_objects: objects to use instead of the saved ones (as in SB3)
-        :param print_system_info: print the system info of the saved model and of this one
-        :param force_reset: reset the env before the next ``learn`` (as in SB3)
-        :param kwargs: attributes to change while loading (as in SB3)
-        :return: the model
-        :raises ValueError: if the file is not a MADDPG model or is damaged, or the env's team is not the model's
-        """
-        read_maddpg_data(path)  # type: ignore[arg-type]
-        try:
-            model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
-        except READ_ERRORS as error:
-            first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-            name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the model file"
-            raise ValueError(f"{name} is damaged or was saved by an incompatible version: {first_line}") from error
-        states = model.__dict__.pop("_saved_random_states", None)
-        if states is not None:
-            restore_random_states(model, states)
-        return model
-
-    def save_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase) -> None:
-        """
-        Save the replay buffer as a pickle file, atomically (see ``save``).
-
-        :param path: the file (``.pkl`` is added when the name has no suffix), or an open binary file
-        """
-        assert self.replay_buffer is not None, "The replay buffer is not defined"
-        atomic_save(super().save_replay_buffer, path, suffix="pkl")  # type: ignore[arg-type]
-
-    def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
-        """
-        Load a replay buffer saved by ``save_replay_buffer``, after checking that it fits this model: the same agents,
-        observation shape and dtype, and action size. A buffer from another number of environment copies is laid
-        out again for this model's copies (``MultiAgentReplayBuffer.with_copies``): every joint transition is kept,
-        up to this model's ``buffer_size``.
-
-        :param path: the pickle file, or an open binary file
-        :param truncate_last_traj: unused (only for SB3's ``HerReplayBuffer``)
-        :raises ValueError: if the buffer does not fit, naming its shapes and the model's
-        """
-        name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the replay buffer file"
-        try:
-            buffer = load_from_pkl(path, self.verbose)
-        except (pickle.UnpicklingError, EOFError, AttributeError, ImportError) as error:
-            raise ValueError(f"{name} is not a replay buffer that can be read here, or is damaged: {error}") from error
-        self.replay_buffer = self._fit_replay_buffer(buffer, name)
-        self.replay_buffer.device = self.device
-
-    def _fit_replay_buffer(self, buffer: Any, name: str) -> MultiAgentReplayBuffer:
-        """Check that a loaded buffer fits the model; lay it out for the model's number of copies."""
-        if not isinstance(buffer, MultiAgentReplayBuffer):
-            raise TypeError(f"{name} holds a {type(buffer).__name__}, not a MultiAgentReplayBuffer of joint transitions")
-        assert self.n_agents is not None
-        obs_shape, obs_dtype = tuple(self.observation_space.shape), self.observation_space.dtype  # type: ignore[arg-type]
-        action_dim = get_action_dim(self.action_space)
-        buffer_dtype = np.dtype(buffer.observation_space.dtype)  # type: ignore[arg-type]
-        found = (buffer.n_agents, tuple(buffer.obs_shape), buffer_dtype, buffer.action_dim)
-        if found != (self.n_agents, obs_shape, obs_dtype, action_dim):
-            raise ValueError(
-                f"the replay buffer {name} holds joint transitions of {buffer.n_agents} agents with observations "
-                f"{tuple(buffer.obs_shape)} {buffer_dtype} and actions ({buffer.action_dim},), but this "
-                f"model has {self.n_agents} agents with observations {obs_shape} {obs_dtype} and actions ({action_dim},); "
-                "load a buffer saved with the same env configuration"
-            )
-        n_copies = self.n_envs // self.n_agents
-        if buffer.n_copies != n_copies:
-            if self.verbose >= 1:
-                print(f"Laying the replay buffer out again: {buffer.n_copies} environment copies -> {n_copies}")
-            buffer = buffer.with_copies(n_copies, self.buffer_size)
-        # Storage where this model keeps its buffer: on its device (storage_device) or in host memory
-        assert self.replay_buffer_class is not None
-        if issubclass(self.replay_buffer_class, DeviceReplayBuffer):
-            storage = self.replay_buffer_kwargs.get("storage_device", self.device)
-            if not isinstance(buffer, DeviceReplayBuffer) or buffer.storage_device != storage:
-                plain = buffer.to_numpy_buffer() if isinstance(buffer, DeviceReplayBuffer) else buffer
-                buffer = DeviceReplayBuffer.from_buffer(plain, storage_device=storage, device=self.device)
-        elif isinstance(buffer, DeviceReplayBuffer):
-            buffer = buffer.to_numpy_buffer()
-        return buffer
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         state_dicts = ["policy", "actor.optimizer", "critic.optimizer"]

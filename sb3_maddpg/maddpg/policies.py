@@ -79,6 +79,12 @@ class MultiAgentQuantileCritic(nn.Module):
     encodings: the input of each critic is [f_1, ..., f_N, a_1, ..., a_N]. So the extractor passes per update grow
     with N, not N^2. The N critic MLPs run as one batched network.
 
+    With ``n_critics > 1`` (MATD3's twin critics) each agent has ``n_critics`` quantile networks on the same
+    encodings, as SB3's ``ContinuousCritic`` puts its ``n_critics`` Q-networks on one features extractor; network
+    c of agent i is model ``c * N + i`` of the batched MLP. The methods that return one value per agent
+    (``forward``, ``quantiles_from_features``, ``quantiles_with_own_actions``) use the first network of each agent,
+    as SB3's ``q1_forward``; ``all_quantiles`` returns every network's.
+
     :param observation_space: one agent's observation space
     :param action_space: one agent's action space
     :param n_agents: number of agents N
@@ -88,6 +94,7 @@ class MultiAgentQuantileCritic(nn.Module):
     :param features_extractor_class: features extractor class
     :param features_extractor_kwargs: its keyword arguments
     :param normalize_images: divide image observations by 255
+    :param n_critics: quantile networks per agent (1 for MADDPG, 2 for MATD3's twin critics)
     """
 
     def __init__(
@@ -101,15 +108,20 @@ class MultiAgentQuantileCritic(nn.Module):
         features_extractor_class: type[BaseFeaturesExtractor],
         features_extractor_kwargs: dict[str, Any],
         normalize_images: bool,
+        n_critics: int = 1,
     ) -> None:
         super().__init__()
         self.n_agents = n_agents
         self.n_quantiles = n_quantiles
+        self.n_critics = n_critics
         self.features = MultiAgentFeatures(
             observation_space, n_agents, features_extractor_class, features_extractor_kwargs, normalize_images
         )
-        input_dim = n_agents * (self.features.features_dim + get_action_dim(action_space))
-        self.quantile_nets = BatchedMlp(n_agents, input_dim, n_quantiles, net_arch, activation_fn)
+        self.action_dim = get_action_dim(action_space)
+        input_dim = n_agents * (self.features.features_dim + self.action_dim)
+        self.quantile_nets = BatchedMlp(n_critics * n_agents, input_dim, n_quantiles, net_arch, activation_fn)
+        # The first network of each agent: models 0 .. N-1
+        self._first_critics = slice(0, n_agents)
 
     def encode(self, observations: th.Tensor) -> th.Tensor:
         """
@@ -120,6 +132,8 @@ class MultiAgentQuantileCritic(nn.Module):
 
     def quantiles_from_features(self, features: th.Tensor, actions: th.Tensor) -> th.Tensor:
         """
+        The first network of each agent's critic.
+
         :param features: (B, N, F) from ``encode``
         :param actions: joint actions seen by every critic, (B, N, A); or one joint action per critic,
             (B, N_critics = N, N, A), where ``actions[:, i]`` is the joint action critic i scores
@@ -128,57 +142,76 @@ class MultiAgentQuantileCritic(nn.Module):
         batch_size, n_agents = features.shape[:2]
         if actions.dim() == 3:
             # Every critic reads the same input: one (B, N*F + N*A) tensor, broadcast to the critics without a copy
-            return self._quantiles_from_hidden(self._first_layer(self._joint_input(features, actions)))
+            hidden = self._first_layer(self._joint_input(features, actions), self._first_critics)
+            return self.quantile_nets.model_major_from(hidden, start=1, models=self._first_critics).transpose(0, 1)
         joint_features = features.flatten(1).unsqueeze(1).expand(batch_size, n_agents, -1)
         # (B, N_critics, N*F + N*A)
         critic_inputs = th.cat([joint_features, actions.flatten(2)], dim=2)
-        return self.quantile_nets(critic_inputs)
+        return self.quantile_nets.model_major_from(
+            critic_inputs.transpose(0, 1), start=0, models=self._first_critics
+        ).transpose(0, 1)
+
+    def all_quantiles_from_features(self, features: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        """
+        Every network of every agent's critic on the joint actions ``actions``.
+
+        :param features: (B, N, F) from ``encode``
+        :param actions: joint actions seen by every critic, (B, N, A)
+        :return: quantiles (n_critics, B, N, n_quantiles), ``[c, :, i]`` from network c of critic i
+        """
+        batch_size, n_agents = features.shape[:2]
+        hidden = self._first_layer(self._joint_input(features, actions))
+        quantiles = self.quantile_nets.model_major_from(hidden, start=1)  # (n_critics * N, B, n_q), model-major
+        return quantiles.view(self.n_critics, n_agents, batch_size, -1).transpose(1, 2)
 
     def quantiles_with_own_actions(self, features: th.Tensor, actions: th.Tensor, own_actions: th.Tensor) -> th.Tensor:
         """
-        The quantiles that the actor update needs: critic i scores the joint action ``actions`` with agent i's own
-        action replaced by ``own_actions[:, i]``.
+        The quantiles that the actor update needs: critic i (its first network) scores the joint action ``actions``
+        with agent i's own action replaced by ``own_actions[:, i]``.
 
-        Equal to ``quantiles_from_features`` on the N mixed joint actions, without building them: the first layer
-        is linear, so critic i's first pre-activation is that of the shared input plus agent i's action change
-        times the rows of critic i's weight that read agent i's action.
+        Equal to ``quantiles_from_features`` on the N mixed joint actions, without building them: critic i's input
+        differs from the shared one only in agent i's action block, and its first layer is linear
+        (``BatchedLinear.forward_with_block_changes``).
 
         :param features: (B, N, F) from ``encode``
         :param actions: the joint actions of the batch, (B, N, A)
         :param own_actions: the actions that replace each agent's own, (B, N, A)
         :return: quantiles (B, N, n_quantiles), ``[:, i]`` from critic i
         """
-        first = self.quantile_nets.net[0]
-        n_agents, action_dim = actions.shape[1], actions.shape[2]
-        n_feature_rows = first.in_features - n_agents * action_dim
-        # own_rows[i] = the rows of critic i's first weight that read agent i's action, (N, A, width); a strided view
-        action_rows = first.weight[:, n_feature_rows:].view(n_agents, n_agents, action_dim, -1)
-        own_rows = th.diagonal(action_rows, dim1=0, dim2=1).permute(2, 0, 1)
+        n_agents = actions.shape[1]
         change = (own_actions - actions).transpose(0, 1)  # (N, B, A)
-        shared = self._first_layer(self._joint_input(features, actions))
-        return self._quantiles_from_hidden(th.baddbmm(shared, change, own_rows))
+        first_action_row = n_agents * features.shape[-1]  # the joint input is [f_1, ..., f_N, a_1, ..., a_N]
+        hidden = self.quantile_nets.first_layer.forward_with_block_changes(
+            self._joint_input(features, actions), change, start=first_action_row, models=self._first_critics
+        )
+        return self.quantile_nets.model_major_from(hidden, start=1, models=self._first_critics).transpose(0, 1)
 
     @staticmethod
     def _joint_input(features: th.Tensor, actions: th.Tensor) -> th.Tensor:
         """(B, N*F + N*A): every agent's features, then every agent's action."""
         return th.cat([features.flatten(1), actions.flatten(1)], dim=1)
 
-    def _first_layer(self, joint_input: th.Tensor) -> th.Tensor:
-        """The critics' first linear layer on one shared input (B, D): (N, B, width), model-major."""
-        first = self.quantile_nets.net[0]
-        return first.forward_model_major(joint_input.unsqueeze(0).expand(first.n_models, -1, -1))
-
-    def _quantiles_from_hidden(self, hidden: th.Tensor) -> th.Tensor:
-        """The layers after the first linear one, on its model-major output: (B, N, n_quantiles)."""
-        return self.quantile_nets.model_major_from(hidden, start=1).transpose(0, 1)
+    def _first_layer(self, joint_input: th.Tensor, models: slice | None = None) -> th.Tensor:
+        """The critics' first linear layer on one shared input (B, D): (M, B, width), model-major."""
+        first = self.quantile_nets.first_layer
+        n_models = first.n_models if models is None else len(range(first.n_models)[models])
+        return first.forward_model_major(joint_input.unsqueeze(0).expand(n_models, -1, -1), models)
 
     def forward(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
         """
         :param observations: (B, N, *obs_shape)
         :param actions: (B, N, A) in [-1, 1]
-        :return: quantiles (B, N, n_quantiles)
+        :return: quantiles (B, N, n_quantiles) of each agent's first critic network
         """
         return self.quantiles_from_features(self.encode(observations), actions)
+
+    def all_quantiles(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        """
+        :param observations: (B, N, *obs_shape)
+        :param actions: (B, N, A) in [-1, 1]
+        :return: quantiles (n_critics, B, N, n_quantiles) of every critic network
+        """
+        return self.all_quantiles_from_features(self.encode(observations), actions)
 
 
 class MADDPGPolicy(BasePolicy):
@@ -194,6 +227,7 @@ class MADDPGPolicy(BasePolicy):
     :param n_agents: number of agents N
     :param share_actor: one actor for all agents instead of one per agent
     :param n_quantiles: number of quantiles of each critic (1 gives a classic scalar critic)
+    :param n_critics: quantile networks per agent's critic: 1 for MADDPG, 2 for MATD3's twin critics
     :param net_arch: hidden layers of actors and critics: a list, or a dict with keys ``pi`` and ``qf``
         (default [64, 64], as in the MADDPG paper)
     :param activation_fn: activation function
@@ -217,6 +251,7 @@ class MADDPGPolicy(BasePolicy):
         n_agents: int = 1,
         share_actor: bool = False,
         n_quantiles: int = 50,
+        n_critics: int = 1,
         net_arch: list[int] | dict[str, list[int]] | None = None,
         activation_fn: type[nn.Module] = nn.ReLU,
         features_extractor_class: type[BaseFeaturesExtractor] = FlattenExtractor,
@@ -233,6 +268,7 @@ class MADDPGPolicy(BasePolicy):
             n_agents,
             share_actor,
             n_quantiles,
+            n_critics,
             net_arch,
             activation_fn,
             features_extractor_class,
@@ -241,7 +277,7 @@ class MADDPGPolicy(BasePolicy):
             optimizer_class,
             optimizer_kwargs,
         )
-        n_quantiles, n_agents = int(n_quantiles), int(n_agents)
+        n_quantiles, n_critics, n_agents = int(n_quantiles), int(n_critics), int(n_agents)
         super().__init__(
             observation_space,
             action_space,
@@ -260,6 +296,7 @@ class MADDPGPolicy(BasePolicy):
         self.n_agents = n_agents
         self.share_actor = share_actor
         self.n_quantiles = n_quantiles
+        self.n_critics = n_critics
         common = dict(
             observation_space=observation_space,
             action_space=action_space,
@@ -270,7 +307,7 @@ class MADDPGPolicy(BasePolicy):
             normalize_images=normalize_images,
         )
         self.actor_kwargs = dict(common, net_arch=actor_arch, shared=share_actor)
-        self.critic_kwargs = dict(common, net_arch=critic_arch, n_quantiles=n_quantiles)
+        self.critic_kwargs = dict(common, net_arch=critic_arch, n_quantiles=n_quantiles, n_critics=n_critics)
         self._build(lr_schedule)
 
     def _build(self, lr_schedule: Schedule) -> None:
@@ -302,6 +339,7 @@ class MADDPGPolicy(BasePolicy):
                 n_agents=self.n_agents,
                 share_actor=self.share_actor,
                 n_quantiles=self.n_quantiles,
+                n_critics=self.n_critics,
                 net_arch=self.net_arch,
                 activation_fn=self.activation_fn,
                 lr_schedule=self._dummy_schedule,  # not needed to load the policy alone
@@ -373,6 +411,7 @@ class CnnPolicy(MADDPGPolicy):
         n_agents: int = 1,
         share_actor: bool = False,
         n_quantiles: int = 50,
+        n_critics: int = 1,
         net_arch: list[int] | dict[str, list[int]] | None = None,
         activation_fn: type[nn.Module] = nn.ReLU,
         features_extractor_class: type[BaseFeaturesExtractor] = ReportCNN,
@@ -388,6 +427,7 @@ class CnnPolicy(MADDPGPolicy):
             n_agents=n_agents,
             share_actor=share_actor,
             n_quantiles=n_quantiles,
+            n_critics=n_critics,
             net_arch=net_arch,
             activation_fn=activation_fn,
             features_extractor_class=features_extractor_class,

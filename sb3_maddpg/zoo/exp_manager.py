@@ -18,6 +18,7 @@ from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecFrameStac
 
 from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
+from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
 from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
 from sb3_maddpg.zoo.storage import beyond_max_total_trials, create_shared_study, is_database_url
@@ -274,9 +275,9 @@ class MultiAgentExperimentManager(ExperimentManager):
     def create_callbacks(self) -> None:
         super().create_callbacks()
         if is_multiagent_env(self.env_name.gym_id):
-            # Episode-end coverage, fairness, energy... in TensorBoard next to SB3's scalars (MADDPG adds this
-            # callback itself; other algorithms trained on a multi-agent env get it here).
-            if self.algo != "maddpg":
+            # Episode-end coverage, fairness, energy... in TensorBoard next to SB3's scalars (the library's
+            # algorithms add this callback themselves; other algorithms trained on a multi-agent env get it here).
+            if not issubclass(ALGOS[self.algo], MultiAgentOffPolicyAlgorithm):
                 self.callbacks.append(EpisodeMetricsCallback())
             for callback in self.callbacks:
                 if isinstance(callback, EvalCallback):

@@ -1,11 +1,11 @@
 """
-Register MADDPG and the multi-agent envs into RL Zoo's own machinery, then run its ``train``, ``enjoy`` and Optuna
+Register MADDPG, MATD3 and the multi-agent envs into RL Zoo's own machinery, then run its ``train``, ``enjoy`` and Optuna
 code unchanged.
 
 RL Zoo reads its algorithms from ``rl_zoo3.utils.ALGOS``, its samplers from ``rl_zoo3.hyperparams_opt``, builds
 training envs in ``ExperimentManager.create_envs`` and test envs with ``create_test_env``. :func:`register_with_rl_zoo`
-adds ``"maddpg"`` to the first two and points ``rl_zoo3.train`` and ``rl_zoo3.enjoy`` at the multi-agent versions of
-the last two; single-agent envs and algorithms keep working as before.
+adds ``"maddpg"`` and ``"matd3"`` to the first two and points ``rl_zoo3.train`` and ``rl_zoo3.enjoy`` at the
+multi-agent versions of the last two; single-agent envs and algorithms keep working as before.
 """
 
 import functools
@@ -17,7 +17,7 @@ _REGISTERED = False
 
 def register_with_rl_zoo() -> None:
     """
-    Make ``--algo maddpg`` and the multi-agent env ids available to RL Zoo (idempotent).
+    Make ``--algo maddpg``, ``--algo matd3`` and the multi-agent env ids available to RL Zoo (idempotent).
     """
     global _REGISTERED
     if _REGISTERED:
@@ -26,15 +26,17 @@ def register_with_rl_zoo() -> None:
     import rl_zoo3.train
     import rl_zoo3.utils
 
-    from sb3_maddpg import MADDPG
+    from sb3_maddpg import MADDPG, MATD3
     from sb3_maddpg.zoo import registry  # noqa: F401  (registers the env ids into Gymnasium's registry)
     from sb3_maddpg.zoo.exp_manager import MultiAgentExperimentManager
     from sb3_maddpg.zoo.hyperparams_opt import convert_maddpg_params, sample_maddpg_params
 
     # One dict object shared by rl_zoo3.utils, .train, .enjoy and .exp_manager: adding a key is seen everywhere.
-    rl_zoo3.utils.ALGOS["maddpg"] = MADDPG
-    rl_zoo3.hyperparams_opt.HYPERPARAMS_SAMPLER["maddpg"] = sample_maddpg_params
-    rl_zoo3.hyperparams_opt.HYPERPARAMS_CONVERTER["maddpg"] = convert_maddpg_params
+    for name, algorithm in (("maddpg", MADDPG), ("matd3", MATD3)):
+        rl_zoo3.utils.ALGOS[name] = algorithm
+        # MATD3 takes MADDPG's arguments: one search space for both
+        rl_zoo3.hyperparams_opt.HYPERPARAMS_SAMPLER[name] = sample_maddpg_params
+        rl_zoo3.hyperparams_opt.HYPERPARAMS_CONVERTER[name] = convert_maddpg_params
     # `train()` looks ExperimentManager up in its module's globals when it runs.
     rl_zoo3.train.ExperimentManager = MultiAgentExperimentManager  # type: ignore[misc]
     _REGISTERED = True

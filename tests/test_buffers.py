@@ -163,3 +163,21 @@ def test_rejects_rows_that_are_not_whole_joint_steps():
         MultiAgentReplayBuffer(30, OBS_SPACE, ACT_SPACE, "cpu", n_envs=5, n_agents=2)
     with pytest.raises(TypeError, match="Box"):
         MultiAgentReplayBuffer(30, spaces.Discrete(3), ACT_SPACE, "cpu", n_envs=2, n_agents=2)
+
+
+def test_like_from_buffer_and_to_numpy_buffer_build_independent_buffers():
+    buffer = make_buffer(buffer_size=30)
+    fill(buffer, 17)
+    empty = MultiAgentReplayBuffer.like(buffer, n_copies=1, buffer_size=8)
+    assert (type(empty), empty.n_copies, empty.buffer_size, empty.size()) == (MultiAgentReplayBuffer, 1, 8, 0)
+    assert (empty.n_agents, empty.observation_space, empty.device) == (N_AGENTS, OBS_SPACE, buffer.device)
+    for copy in (buffer.to_numpy_buffer(), MultiAgentReplayBuffer.from_buffer(buffer)):
+        assert copy.observations is not buffer.observations and copy._free_extra == buffer._free_extra
+        samples = []
+        for source in (buffer, copy):
+            np.random.seed(1)
+            samples.append(source.sample(64))
+        assert all(th.equal(x, y) for x, y in zip(*samples, strict=True))
+        fill(copy, 40)  # the copy goes on alone
+        check_samples(copy, 40)
+    check_samples(buffer, 17)

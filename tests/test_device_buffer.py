@@ -1,6 +1,7 @@
 """The replay buffer stored on a torch device: the same transitions as the numpy buffer, sampled on the device."""
 
 import pickle
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -16,6 +17,7 @@ from sb3_maddpg.common.device_buffer import DeviceReplayBuffer, _select_rows
 
 CUDA = pytest.mark.skipif(not th.cuda.is_available(), reason="needs CUDA")
 DEVICES = ["cpu", pytest.param("cuda", marks=CUDA)]
+DATA = Path(__file__).parent / "data"
 FIELDS = ("observations", "actions", "next_observations", "dones", "rewards")
 
 
@@ -248,6 +250,34 @@ def test_a_cuda_buffer_loads_on_the_cpu_without_cuda():
     assert loaded.storage_device == loaded.device == th.device("cpu")
     assert_same_state(driver.numpy, loaded)
     loaded.sample(4)
+
+
+@pytest.mark.parametrize("kind", ["numpy", "device"])
+def test_a_buffer_pickled_with_the_previous_layout_loads_and_samples_as_before(kind):
+    """
+    ``tests/data/old_layout_<kind>_buffer.pickle`` were pickled by the code before the two storages shared one
+    host-side index (commit fb832a8, where the NumPy buffer kept ``pending_next_observations`` and
+    ``extra_next_observations`` as two arrays), from this driver's buffers after the same operations.
+    """
+    with open(DATA / f"old_layout_{kind}_buffer.pickle", "rb") as file:
+        loaded = pickle.load(file)
+    driver = TwinDriver(OBS_SPACES["vector"], 2, 2, 8, seed=0)
+    driver.run(["step"] * 9 + ["reset"] + ["step"] * 3)
+    twin = getattr(driver, kind)
+    assert type(loaded) is type(twin)
+    assert_same_state(*((loaded, driver.device) if kind == "numpy" else (driver.numpy, loaded)))
+    batches = []
+    for buffer in (twin, loaded):
+        np.random.seed(3)
+        th.manual_seed(3)
+        batches.append(buffer.sample(32))
+    for x, y in zip(*batches, strict=True):
+        assert th.equal(x, y)
+    # and it keeps working as its twin does
+    setattr(driver, kind, loaded)
+    driver.run(["step"] * 6 + ["reset", "step"])
+    assert_same_state(driver.numpy, driver.device)
+    assert_all_stored_samples_equal(driver)
 
 
 @pytest.mark.parametrize("storage_device", DEVICES)

@@ -1,7 +1,11 @@
-"""Replay buffer of joint multi-agent transitions."""
+"""
+Replay buffer of joint multi-agent transitions: one host-side index (positions, episode ends, the kept next
+observations and their free list) over a storage of NumPy arrays in host memory. ``DeviceReplayBuffer``
+(``device_buffer.py``) keeps the same index over torch tensors on a device.
+"""
 
 import warnings
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 import torch as th
@@ -13,6 +17,16 @@ try:
     import psutil
 except ImportError:  # pragma: no cover
     psutil = None
+
+SelfBuffer = TypeVar("SelfBuffer", bound="MultiAgentReplayBuffer")
+
+# The stored arrays (the storage); the device buffer keeps them as tensors
+STORED = ("observations", "actions", "rewards", "dones", "timeouts", "next_obs_index", "_aux")
+
+
+def to_host(array: np.ndarray | th.Tensor) -> np.ndarray:
+    """A NumPy array of a stored array, wherever it is (a copy only when it is not in host memory as NumPy)."""
+    return array.detach().cpu().numpy() if isinstance(array, th.Tensor) else array
 
 
 class MultiAgentReplayBufferSamples(NamedTuple):
@@ -58,6 +72,14 @@ class MultiAgentReplayBuffer(ReplayBuffer):
     The kept next observations live in a growable array with a free list, so their memory follows the number of
     episode ends currently in the buffer. Sampling is vectorised (no loop over samples).
 
+    The buffer is one host-side index over a storage. The index, in host memory: ``pos``, ``full``, which rows of
+    the kept next observations each (slot, copy) uses (``_next_obs_index_host``), their free list, and a copy of the
+    pending next observations; ``add`` reads only the index to decide what to keep, then writes the storage. The
+    storage: the arrays above, ``next_obs_index``, and ``_aux`` (rows [0, n_copies): the pending next observations,
+    then the kept ones, so ``pending_next_observations`` and ``extra_next_observations`` are views of it). Here the
+    storage is NumPy arrays in host memory, sampled with NumPy's global generator; ``DeviceReplayBuffer`` overrides
+    only how the storage is allocated, written and sampled, to keep it as torch tensors on a device.
+
     :param buffer_size: maximum number of joint transitions
     :param observation_space: one agent's observation space (a Box)
     :param action_space: one agent's action space
@@ -73,6 +95,10 @@ class MultiAgentReplayBuffer(ReplayBuffer):
     rewards: np.ndarray
     dones: np.ndarray
     timeouts: np.ndarray
+    next_obs_index: np.ndarray
+    _aux: np.ndarray
+    # Where the storage lives (host memory here; a DeviceReplayBuffer sets its own)
+    storage_device: th.device = th.device("cpu")
 
     def __init__(
         self,
@@ -85,52 +111,6 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         handle_timeout_termination: bool = True,
         n_agents: int = 1,
     ) -> None:
-        self._set_layout(
-            buffer_size,
-            observation_space,
-            action_space,
-            device,
-            n_envs,
-            optimize_memory_usage,
-            handle_timeout_termination,
-            n_agents,
-        )
-        slots, copies, agents = self.buffer_size, self.n_copies, self.n_agents
-        obs_dtype = observation_space.dtype
-        self.observations = np.zeros((slots, copies, agents, *self.obs_shape), dtype=obs_dtype)
-        self.actions = np.zeros((slots, copies, agents, self.action_dim), dtype=self._maybe_cast_dtype(action_space.dtype))
-        self.rewards = np.zeros((slots, copies, agents), dtype=np.float32)
-        self.dones = np.zeros((slots, copies), dtype=np.float32)
-        self.timeouts = np.zeros((slots, copies), dtype=np.float32)
-        # Index into extra_next_observations of the next observation kept for (slot, copy), -1 when derived
-        self.next_obs_index = np.full((slots, copies), -1, dtype=np.int64)
-        self.extra_next_observations = np.zeros((0, agents, *self.obs_shape), dtype=obs_dtype)
-        self._free_extra: list[int] = []
-        # Next observation of the newest step, (n_copies, n_agents, *obs_shape)
-        self.pending_next_observations = np.zeros((copies, agents, *self.obs_shape), dtype=obs_dtype)
-        self._has_pending = False
-
-        if psutil is not None:
-            total = self.nbytes_per_slot() * slots
-            available = psutil.virtual_memory().available
-            if total > available:
-                warnings.warn(
-                    "This system does not have apparently enough memory to store the complete "
-                    f"replay buffer {total / 1e9:.2f}GB > {available / 1e9:.2f}GB"
-                )
-
-    def _set_layout(
-        self,
-        buffer_size: int,
-        observation_space: spaces.Space,
-        action_space: spaces.Space,
-        device: th.device | str,
-        n_envs: int,
-        optimize_memory_usage: bool,
-        handle_timeout_termination: bool,
-        n_agents: int,
-    ) -> None:
-        """Check the spaces and the team, and set the attributes every joint buffer has (parameters as in ``__init__``)."""
         name = type(self).__name__
         if not isinstance(observation_space, spaces.Box):
             raise TypeError(f"{name} accepts a Box observation space, got {observation_space}")
@@ -147,11 +127,80 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         self.buffer_size = max(buffer_size // self.n_copies, 1)
         self.optimize_memory_usage = optimize_memory_usage
         self.handle_timeout_termination = handle_timeout_termination
+        self._obs_np_dtype = np.dtype(observation_space.dtype)
+        self._action_np_dtype = np.dtype(self._maybe_cast_dtype(action_space.dtype))
+        self._check_memory()
+
+        slots, copies, agents = self.buffer_size, self.n_copies, self.n_agents
+        # The host-side index (pos and full are BaseBuffer's)
+        self._next_obs_index_host = np.full((slots, copies), -1, dtype=np.int64)
+        self._pending_host = np.zeros((copies, agents, *self.obs_shape), dtype=self._obs_np_dtype)
+        self._free_extra: list[int] = []
+        self._has_pending = False
+        # The storage. next_obs_index: row of extra_next_observations kept for (slot, copy), -1 when derived
+        self.observations = self._zeros((slots, copies, agents, *self.obs_shape), self._obs_np_dtype)
+        self.actions = self._zeros((slots, copies, agents, self.action_dim), self._action_np_dtype)
+        self.rewards = self._zeros((slots, copies, agents), np.float32)
+        self.dones = self._zeros((slots, copies), np.float32)
+        self.timeouts = self._zeros((slots, copies), np.float32)
+        (self.next_obs_index,) = self._upload(self._next_obs_index_host)  # the index itself, for NumPy storage
+        self._aux = self._zeros((copies, agents, *self.obs_shape), self._obs_np_dtype)
+
+    # --- The storage: NumPy arrays in host memory (DeviceReplayBuffer overrides these) -----------------------------
+
+    def _zeros(self, shape: tuple[int, ...], dtype: np.dtype | type) -> np.ndarray:
+        """A zero-filled array of the storage."""
+        return np.zeros(shape, dtype=dtype)
+
+    def _upload(self, *arrays: np.ndarray) -> list[np.ndarray]:
+        """Host arrays as the storage reads them (NumPy storage: the arrays themselves)."""
+        return list(arrays)
+
+    def _index(self, indices: np.ndarray) -> np.ndarray:
+        """Indices as the storage takes them."""
+        return np.asarray(indices, dtype=np.int64)
+
+    def _storage_kwargs(self) -> dict[str, Any]:
+        """The constructor arguments that place a buffer's storage like this one's (none for NumPy storage)."""
+        return {}
+
+    @property
+    def pending_next_observations(self) -> np.ndarray:
+        """Next observation of the newest step, (n_copies, n_agents, *obs_shape), in the storage."""
+        return self._aux[: self.n_copies]
+
+    @property
+    def extra_next_observations(self) -> np.ndarray:
+        """The kept next observations (growable, with a free list), in the storage."""
+        return self._aux[self.n_copies :]
+
+    def _check_memory(self) -> None:
+        """Warn when the preallocated storage does not fit in the free memory where it lives."""
+        total = self.nbytes_per_slot() * self.buffer_size
+        if self.storage_device.type == "cuda":
+            available = th.cuda.mem_get_info(self.storage_device)[0]
+            message = f"The replay buffer storage needs {total / 1e9:.2f}GB but there is {available / 1e9:.2f}GB"
+            message += f" free memory on {self.storage_device}"
+        elif self.storage_device.type == "cpu" and psutil is not None:
+            available = psutil.virtual_memory().available
+            message = "This system does not have apparently enough memory to store the complete "
+            message += f"replay buffer {total / 1e9:.2f}GB > {available / 1e9:.2f}GB"
+        else:
+            return
+        if total > available:
+            warnings.warn(message)
 
     def nbytes_per_slot(self) -> int:
-        """Bytes of the preallocated arrays per slot (one slot holds ``n_copies`` joint transitions)."""
-        arrays = (self.observations, self.actions, self.rewards, self.dones, self.timeouts, self.next_obs_index)
-        return sum(a.nbytes // a.shape[0] for a in arrays)
+        """Bytes of the preallocated storage per slot (one slot holds ``n_copies`` joint transitions)."""
+        copies, agents = self.n_copies, self.n_agents
+        return copies * (
+            agents * int(np.prod(self.obs_shape)) * self._obs_np_dtype.itemsize
+            + agents * self.action_dim * self._action_np_dtype.itemsize
+            + agents * 4  # rewards
+            + 4  # dones
+            + 4  # timeouts
+            + 8  # next_obs_index
+        )
 
     def bytes_per_joint_transition(self) -> float:
         """
@@ -159,6 +208,8 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         observation (``n_agents * prod(obs_shape)`` elements) while it is in the buffer.
         """
         return self.nbytes_per_slot() / self.n_copies
+
+    # --- Adding: the host-side index decides, then one write of the storage ---------------------------------------
 
     def add(
         self,
@@ -170,7 +221,8 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         infos: list[dict[str, Any]],
     ) -> None:
         """
-        Store one VecEnv step: every copy's joint transition.
+        Store one VecEnv step: every copy's joint transition. The arrays are cast to the storage dtypes first (the
+        check whether the environment was reset in between compares the cast observations).
 
         :param obs: (n_copies * n_agents, *obs_shape) in SB3's row layout
         :param next_obs: (n_copies * n_agents, *obs_shape); rows that ended an episode hold the terminal observation
@@ -180,35 +232,59 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         :param infos: one dict per row; ``TimeLimit.truncated`` marks truncations
         """
         copies, agents = self.n_copies, self.n_agents
-        obs = np.asarray(obs).reshape(copies, agents, *self.obs_shape)
-        next_obs = np.asarray(next_obs).reshape(copies, agents, *self.obs_shape)
-        action = np.asarray(action).reshape(copies, agents, self.action_dim)
-        reward = np.asarray(reward).reshape(copies, agents)
+        obs = np.asarray(obs).reshape(copies, agents, *self.obs_shape).astype(self._obs_np_dtype, copy=False)
+        next_obs = np.asarray(next_obs).reshape(copies, agents, *self.obs_shape).astype(self._obs_np_dtype, copy=False)
+        action = np.asarray(action).reshape(copies, agents, self.action_dim).astype(self._action_np_dtype, copy=False)
+        reward = np.asarray(reward).reshape(copies, agents).astype(np.float32, copy=False)
         copy_done = np.asarray(done).reshape(copies, agents).any(axis=1)
         truncated = np.array([info.get("TimeLimit.truncated", False) for info in infos], dtype=bool)
         copy_timeout = truncated.reshape(copies, agents).any(axis=1)
 
-        if self._has_pending:
+        had_pending, prev = self._has_pending, (self.pos - 1) % self.buffer_size
+        lost = np.zeros(0, dtype=np.int64)
+        if had_pending:
             # The previous step's successor is the observation arriving now, unless the environment was reset
             # in between without an episode end (new learn() call, resumed buffer): then keep the true successor.
-            prev = (self.pos - 1) % self.buffer_size
-            differs = (obs != self.pending_next_observations).reshape(copies, -1).any(axis=1)
-            lost = np.flatnonzero(differs & (self.next_obs_index[prev] < 0))
-            if len(lost) > 0:
-                self._keep_next_obs(prev, lost, self.pending_next_observations[lost])
-
+            differs = (obs != self._pending_host).reshape(copies, -1).any(axis=1)
+            lost = np.flatnonzero(differs & (self._next_obs_index_host[prev] < 0))
+        lost_rows = self._claim_rows(prev, lost)
         self._release_slot(self.pos)
-        self.observations[self.pos] = obs
-        self.actions[self.pos] = action
-        self.rewards[self.pos] = reward
-        self.dones[self.pos] = copy_done
-        if self.handle_timeout_termination:
-            self.timeouts[self.pos] = copy_timeout
         ended = np.flatnonzero(copy_done)
+        ended_rows = self._claim_rows(self.pos, ended)
+
+        (obs_s, next_s, action_s, reward_s, done_s, timeout_s, lost_s, lost_rows_s, ended_s, ended_rows_s, prev_s, pos_s) = (
+            self._upload(
+                obs,
+                next_obs,
+                action,
+                reward,
+                copy_done.astype(np.float32),
+                copy_timeout.astype(np.float32),
+                lost,
+                lost_rows + copies,
+                ended,
+                ended_rows + copies,
+                self._next_obs_index_host[prev],
+                self._next_obs_index_host[self.pos],
+            )
+        )
+        if len(lost) > 0:
+            # Keep the old pending next observations (rows [0, n_copies) of _aux) before they are overwritten below
+            self._aux[lost_rows_s] = self._aux[lost_s]
+        self.observations[self.pos] = obs_s
+        self.actions[self.pos] = action_s
+        self.rewards[self.pos] = reward_s
+        self.dones[self.pos] = done_s
+        if self.handle_timeout_termination:
+            self.timeouts[self.pos] = timeout_s
         if len(ended) > 0:
             # The next row of `observations` will be the first observation of the next episode
-            self._keep_next_obs(self.pos, ended, next_obs[ended])
-        self.pending_next_observations[...] = next_obs
+            self._aux[ended_rows_s] = next_s[ended_s]
+        self._aux[:copies] = next_s
+        if had_pending:
+            self.next_obs_index[prev] = prev_s
+        self.next_obs_index[self.pos] = pos_s
+        self._pending_host[...] = next_obs
         self._has_pending = True
 
         self.pos += 1
@@ -216,31 +292,44 @@ class MultiAgentReplayBuffer(ReplayBuffer):
             self.full = True
             self.pos = 0
 
-    def _keep_next_obs(self, slot: int, copies: np.ndarray, values: np.ndarray) -> None:
-        """Keep explicit next observations ``values`` (k, n_agents, *obs_shape) for ``(slot, copies[i])``."""
+    def _claim_rows(self, slot: int, copies: np.ndarray) -> np.ndarray:
+        """
+        Take rows of ``extra_next_observations`` for ``(slot, copies[i])`` in the index, growing the storage when the
+        free list runs out; the caller writes the rows.
+
+        :return: the rows, shape (k,)
+        """
         while len(self._free_extra) < len(copies):
-            old = len(self.extra_next_observations)
+            old = len(self._aux) - self.n_copies
             new = max(2 * old, 2 * self.n_copies, 8)
-            grown = np.zeros((new, *self.extra_next_observations.shape[1:]), dtype=self.extra_next_observations.dtype)
-            grown[:old] = self.extra_next_observations
-            self.extra_next_observations = grown
+            self._resize_extra(new)
             self._free_extra.extend(range(new - 1, old - 1, -1))
         index = np.array([self._free_extra.pop() for _ in range(len(copies))], dtype=np.int64)
-        self.extra_next_observations[index] = values
-        self.next_obs_index[slot, copies] = index
+        self._next_obs_index_host[slot, copies] = index
+        return index
 
     def _release_slot(self, slot: int) -> None:
-        """Free the explicit next observations of a slot that is about to be overwritten."""
-        index = self.next_obs_index[slot]
+        """Free the kept next observations of a slot that is about to be overwritten (in the index)."""
+        index = self._next_obs_index_host[slot]
         self._free_extra.extend(index[index >= 0].tolist())
-        self.next_obs_index[slot] = -1
+        self._next_obs_index_host[slot] = -1
+
+    def _resize_extra(self, n_rows: int) -> None:
+        """Reallocate ``extra_next_observations`` for ``n_rows`` rows (the pending rows and the first ones are kept)."""
+        aux = self._zeros((self.n_copies + n_rows, *self._aux.shape[1:]), self._obs_np_dtype)
+        kept = min(len(aux), len(self._aux))
+        aux[:kept] = self._aux[:kept]
+        self._aux = aux
 
     def reset(self) -> None:
         super().reset()
+        self._next_obs_index_host[...] = -1
         self.next_obs_index[...] = -1
-        self.extra_next_observations = self.extra_next_observations[:0]
+        self._resize_extra(0)  # frees the kept next observations
         self._free_extra = []
         self._has_pending = False
+
+    # --- Sampling from the NumPy storage --------------------------------------------------------------------------
 
     def sample(self, batch_size: int, env: VecNormalize | None = None) -> MultiAgentReplayBufferSamples:  # type: ignore[override]
         """
@@ -298,6 +387,8 @@ class MultiAgentReplayBuffer(ReplayBuffer):
             next_obs[kept] = self.extra_next_observations[extra[kept]]
         return next_obs
 
+    # --- Copies and layouts: one constructor path ------------------------------------------------------------------
+
     def stored_transitions(self) -> tuple[np.ndarray, np.ndarray]:
         """
         Where the stored joint transitions are, oldest first within each copy, copy after copy.
@@ -309,13 +400,83 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         slots = (start + np.arange(n_stored)) % self.buffer_size
         return np.tile(slots, self.n_copies), np.repeat(np.arange(self.n_copies), n_stored)
 
-    def with_copies(self, n_copies: int, buffer_size: int | None = None) -> "MultiAgentReplayBuffer":
+    @classmethod
+    def like(
+        cls: type[SelfBuffer],
+        buffer: "MultiAgentReplayBuffer",
+        n_copies: int | None = None,
+        buffer_size: int | None = None,
+        device: th.device | str | None = None,
+        **storage_kwargs: Any,
+    ) -> SelfBuffer:
+        """
+        An empty buffer of this class with the spaces and settings of another: the one place where a buffer is built
+        from another (``with_copies``, ``from_buffer``, ``to_numpy_buffer``).
+
+        :param buffer: the buffer whose spaces, agents and settings the new one takes
+        :param n_copies: number of environment copies (default: the buffer's)
+        :param buffer_size: capacity in joint transitions (default: the buffer's)
+        :param device: device of the sampled tensors (default: the buffer's)
+        :param storage_kwargs: further arguments of this class's constructor (``storage_device`` of a
+            ``DeviceReplayBuffer``)
+        :return: the new buffer
+        """
+        n_copies = buffer.n_copies if n_copies is None else n_copies
+        return cls(
+            buffer.buffer_size * buffer.n_copies if buffer_size is None else buffer_size,
+            buffer.observation_space,
+            buffer.action_space,
+            device=buffer.device if device is None else device,
+            n_envs=n_copies * buffer.n_agents,
+            optimize_memory_usage=buffer.optimize_memory_usage,
+            handle_timeout_termination=buffer.handle_timeout_termination,
+            n_agents=buffer.n_agents,
+            **storage_kwargs,
+        )
+
+    @classmethod
+    def from_buffer(
+        cls: type[SelfBuffer],
+        buffer: "MultiAgentReplayBuffer",
+        storage_device: th.device | str | None = None,
+        device: th.device | str | None = None,
+    ) -> SelfBuffer:
+        """
+        A buffer of this class with the contents and state of another joint buffer, from either storage (a full copy;
+        for example a ``DeviceReplayBuffer`` of a buffer loaded from a file saved with the NumPy buffer).
+
+        :param buffer: a ``MultiAgentReplayBuffer`` or ``DeviceReplayBuffer``
+        :param storage_device: where the new buffer's storage lives, for a ``DeviceReplayBuffer`` (default: its
+            constructor's, ``'cuda'``)
+        :param device: device of the sampled tensors (default: the buffer's)
+        :return: the new buffer (``buffer`` is unchanged)
+        """
+        new = cls.like(buffer, device=device, **({} if storage_device is None else {"storage_device": storage_device}))
+        new._resize_extra(len(buffer._aux) - buffer.n_copies)
+        for name in STORED:
+            th.as_tensor(getattr(new, name)).copy_(th.as_tensor(getattr(buffer, name)))
+        new._next_obs_index_host[...] = buffer._next_obs_index_host
+        new._pending_host[...] = buffer._pending_host
+        new._free_extra = list(buffer._free_extra)
+        new._has_pending, new.pos, new.full = buffer._has_pending, buffer.pos, buffer.full
+        return new
+
+    def to_numpy_buffer(self) -> "MultiAgentReplayBuffer":
+        """
+        A ``MultiAgentReplayBuffer`` with the same contents and state, in host memory (a full copy).
+
+        :return: the NumPy buffer (this one is unchanged)
+        """
+        return MultiAgentReplayBuffer.from_buffer(self)
+
+    def with_copies(self: SelfBuffer, n_copies: int, buffer_size: int | None = None) -> SelfBuffer:
         """
         The same joint transitions laid out for another number of environment copies (to resume with more or fewer
-        copies). Each copy's history is kept in order; the histories are joined one after the other and cut into
-        ``n_copies`` equal pieces. Where a transition's successor in the new layout is not its true successor (a join
-        or a cut), its next observation is kept explicitly, so every transition is sampled as it was stored. When the
-        transitions do not fill whole slots, or exceed ``buffer_size``, the oldest are left out.
+        copies), in a buffer of the same class and storage. Each copy's history is kept in order; the histories are
+        joined one after the other and cut into ``n_copies`` equal pieces. Where a transition's successor in the new
+        layout is not its true successor (a join or a cut), its next observation is kept explicitly, so every
+        transition is sampled as it was stored. When the transitions do not fill whole slots, or exceed
+        ``buffer_size``, the oldest are left out.
 
         :param n_copies: the new number of copies
         :param buffer_size: the new capacity in joint transitions (default: this buffer's)
@@ -324,17 +485,8 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         if isinstance(n_copies, bool) or not isinstance(n_copies, int | np.integer) or n_copies < 1:
             raise ValueError(f"n_copies must be an integer >= 1, got {n_copies!r}")
         n_copies = int(n_copies)
-        capacity = self.buffer_size * self.n_copies if buffer_size is None else int(buffer_size)
-        new = MultiAgentReplayBuffer(
-            capacity,
-            self.observation_space,
-            self.action_space,
-            device=self.device,
-            n_envs=n_copies * self.n_agents,
-            optimize_memory_usage=self.optimize_memory_usage,
-            handle_timeout_termination=self.handle_timeout_termination,
-            n_agents=self.n_agents,
-        )
+        capacity = None if buffer_size is None else int(buffer_size)
+        new = type(self).like(self, n_copies=n_copies, buffer_size=capacity, **self._storage_kwargs())
         slots, copies = self.stored_transitions()
         length = min(len(slots) // n_copies, new.buffer_size)  # slots of the new layout
         if length == 0:
@@ -344,17 +496,32 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         # Sequence element e goes to slot e % length of copy e // length
         new_slots = np.tile(np.arange(length), n_copies)
         new_copies = np.repeat(np.arange(n_copies), length)
+        to, at = (new._index(new_slots), new._index(new_copies)), (self._index(slots), self._index(copies))
         for name in ("observations", "actions", "rewards", "dones", "timeouts"):
-            getattr(new, name)[new_slots, new_copies] = getattr(self, name)[slots, copies]
+            getattr(new, name)[to] = getattr(self, name)[at]
         # Next observations that the new layout cannot derive: explicit ones, joins of two histories, cuts
         successor_is_true = np.zeros(len(slots), dtype=bool)
         successor_is_true[:-1] = (copies[1:] == copies[:-1]) & (new_copies[1:] == new_copies[:-1])
-        explicit = (self.next_obs_index[slots, copies] >= 0) | ~successor_is_true
-        new.extra_next_observations = self.next_observations_of(slots[explicit], copies[explicit])
-        new.next_obs_index[new_slots[explicit], new_copies[explicit]] = np.arange(int(explicit.sum()))
+        explicit = (self._next_obs_index_host[slots, copies] >= 0) | ~successor_is_true
+        new._resize_extra(int(explicit.sum()))
+        new._aux[n_copies:] = self.next_observations_of(slots[explicit], copies[explicit])
+        new._next_obs_index_host[new_slots[explicit], new_copies[explicit]] = np.arange(int(explicit.sum()))
+        (new.next_obs_index,) = new._upload(new._next_obs_index_host)
         last = np.arange(1, n_copies + 1) * length - 1
-        new.pending_next_observations[...] = self.next_observations_of(slots[last], copies[last])
+        new._aux[:n_copies] = self.next_observations_of(slots[last], copies[last])
+        new._pending_host[...] = to_host(new._aux[:n_copies])
         new._has_pending = True
         new.pos = length % new.buffer_size
         new.full = length == new.buffer_size
         return new
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        if "_aux" not in state:
+            # Pickled before the two storages shared one index: the pending and the kept next observations were
+            # two arrays, and next_obs_index was the index itself
+            pending = state.pop("pending_next_observations")
+            state["_aux"] = np.concatenate([pending, state.pop("extra_next_observations")])
+            state["_pending_host"] = pending.copy()
+            state["_next_obs_index_host"] = state["next_obs_index"]
+            state["_obs_np_dtype"], state["_action_np_dtype"] = state["observations"].dtype, state["actions"].dtype
+        self.__dict__.update(state)

@@ -32,9 +32,9 @@ _MAX_REAL = 1e12
 _MIN_POSITIVE = 1e-12
 
 #: The rules a v1 env may switch; the first of each is the report's (``uav_coverage_v0``).
-ACTION_MODES = ("polar", "cartesian", "waypoint")
+ACTION_MODES = ("polar", "cartesian")
 WALL_MODES = ("refuse", "clip")
-REWARD_MODES = ("report", "coverage", "marginal", "team")
+REWARD_MODES = ("report", "coverage")
 POSITION_MARKS = ("cell", "exact")
 
 
@@ -207,9 +207,7 @@ class UAVCoverageCore:
     :param reward_scale: every agent's reward is multiplied by this
     :param reward_clip: if set, rewards are clipped into [-reward_clip, reward_clip]
     :param action_mode: ``"polar"`` (the report's: a = (direction / 2 pi, distance / l_max)) or ``"cartesian"``
-        (displacement (dx, dy) = (2 a - 1) l_max, shortened to l_max when longer; a = (0.5, 0.5) hovers) or
-        ``"waypoint"`` (a is a point of the area, a L: the UAV flies straight toward it, at most l_max per step, and
-        hovers once there; no commanded move leaves the area)
+        (displacement (dx, dy) = (2 a - 1) l_max, shortened to l_max when longer; a = (0.5, 0.5) hovers)
     :param wall_mode: ``"refuse"`` (the report's: a move that would leave the area is not made and is charged
         ``wall_penalty``) or ``"clip"`` (the UAV stops at the boundary and is charged ``wall_penalty`` times the
         overshoot / l_max, so the penalty grows continuously from 0 with how far the move would have gone out)
@@ -217,30 +215,20 @@ class UAVCoverageCore:
         plus ``entropy_coef`` times the spatial entropy) or ``"coverage"`` (per-agent credit of order 1: each PoI
         covered this step is worth ``1 - fairness_coef * c_{t-1}(k)``, split equally between the UAVs covering it and
         scaled by N / K, so the agents' rewards sum to N times the team's weighted coverage fraction; minus
-        ``energy_coef`` times the UAV's own energy this step / (eta l_max)) or ``"marginal"`` (as ``"coverage"``,
-        but each UAV is credited only with the PoIs that no other UAV covers: the difference reward) or ``"team"`` (as
-        ``"coverage"``, but every UAV is credited with the whole team's weighted coverage, the sum of the
-        ``"coverage"`` credits, so that moving off a teammate's disc pays both; energy and penalties stay its own)
-    :param fairness_coef: with ``reward_mode="coverage"``, ``"marginal"`` or ``"team"``, how much less a PoI is worth
+        ``energy_coef`` times the UAV's own energy this step / (eta l_max))
+    :param fairness_coef: with ``reward_mode="coverage"``, how much less a PoI is worth
         the more it has been covered so far, in [0, 1] (0: every covered PoI counts 1; 1: only the uncovered share of
         its history counts)
-    :param energy_coef: with ``reward_mode="coverage"``, ``"marginal"`` or ``"team"``, the weight of the UAV's own
-        energy (>= 0)
+    :param energy_coef: with ``reward_mode="coverage"``, the weight of the UAV's own energy (>= 0)
     :param teammate_channel: if True, observations get a fourth channel showing the active teammates within radio
         range R (``comm_range``) of the agent, each on its cell block with its channel-1 value; what a decentralised
         UAV can learn from its links. The state keeps its three channels (it already shows every UAV).
-    :param hover_deadband: in [0, 1): a commanded move shorter than this fraction of l_max is not made and the UAV
-        hovers (rho = 0, energy E_h), in every action mode; 0 (the report's rule) keeps every move
     :param position_mark: how a UAV is drawn on channel 1 of the observations and of the state: ``"cell"`` (the
         report's: its cell's block, so the image tells only which cell it is in) or ``"exact"`` (a square of one
         cell's size centred on its exact position, anti-aliased: each pixel holds the value times the fraction of it
         the square covers, so the mark's centre of mass is the position itself, to the uint8 rounding). Which PoIs a
         disc of radius R0 covers depends on where in its cell the UAV is (29 to 32 lattice PoIs at R0 = 3), so a
         policy that only knows the cell cannot place its disc well
-    :param coverage_edge: width w >= 0 of a soft disc edge in the coverage rewards (``reward_mode`` other than
-        ``"report"``): a PoI at distance d from a UAV counts clip((R0 + w / 2 - d) / w, 0, 1) of a cover in the UAV's
-        credit, so the credit changes continuously with the position instead of by whole PoIs. 0 (the default) is the
-        hard disc of the metrics; the metrics (c_t, f_t, ...) always use the hard disc
     """
 
     def __init__(
@@ -271,9 +259,7 @@ class UAVCoverageCore:
         fairness_coef: float = 0.5,
         energy_coef: float = 0.5,
         teammate_channel: bool = False,
-        hover_deadband: float = 0.0,
         position_mark: str = "cell",
-        coverage_edge: float = 0.0,
     ) -> None:
         # --- configuration, validated where it enters -------------------------------------------------------------
         self.map_size = _check_int("map_size", map_size, 1)
@@ -308,13 +294,7 @@ class UAVCoverageCore:
         if not isinstance(teammate_channel, bool | np.bool_):
             raise TypeError(f"teammate_channel must be a bool, got {teammate_channel!r}")
         self.teammate_channel = bool(teammate_channel)
-        self.hover_deadband = _check_real("hover_deadband", hover_deadband, low_inclusive=True, high=1.0)
         self.position_mark = _check_choice("position_mark", position_mark, POSITION_MARKS)
-        self.coverage_edge = _check_real("coverage_edge", coverage_edge, low_inclusive=True)
-        if self.coverage_edge > 2.0 * self.coverage_range:
-            raise ValueError(
-                f"coverage_edge must lie in [0, 2 coverage_range] = [0, {2.0 * self.coverage_range}], got {coverage_edge!r}"
-            )
         #: Channels of an agent's observation: 3, or 4 with the teammate channel.
         self.n_obs_channels = 4 if self.teammate_channel else 3
 
@@ -557,11 +537,11 @@ class UAVCoverageCore:
         previous_sum = float(self.coverage_scores.sum())
         diff = self.pois[None, :, :] - self.positions[:, None, :]
         sq_dist = np.einsum("nkd,nkd->nk", diff, diff)
-        covered = ((sq_dist <= self.coverage_range**2) & active[:, None]).any(axis=0)
-        self.visits += covered
+        covering = (sq_dist <= self.coverage_range**2) & active[:, None]
+        self.visits += covering.any(axis=0)
         # Weights of the coverage reward use c_{t-1}(k), read before this step's update.
-        if self.reward_mode != "report":
-            credit = self._coverage_credit(self._reward_cover(sq_dist), active)
+        if self.reward_mode == "coverage":
+            credit = self._coverage_credit(covering)
         np.divide(self.visits, self.t, out=self.coverage_scores)
         score_sum = float(self.coverage_scores.sum())
 
@@ -628,99 +608,31 @@ class UAVCoverageCore:
 
         :param actions: (N, 2) in [0, 1]^2
         :return: displacement (N, 2) and distance ratio rho = length / l_max (N,); polar:
-            rho l_max (cos 2 pi a_0, sin 2 pi a_0) with rho = a_1; Cartesian: (2 a - 1) l_max, waypoint: a L minus the
-            position, each scaled down to length l_max where it is longer; moves shorter than ``hover_deadband`` l_max
-            become hovering
+            rho l_max (cos 2 pi a_0, sin 2 pi a_0) with rho = a_1; Cartesian: (2 a - 1) l_max, scaled down to length
+            l_max where it is longer
         """
         if self.action_mode == "polar":
             theta = _TWO_PI * actions[:, 0]
             rho = actions[:, 1]
             displacement = (rho * self.max_distance)[:, None] * np.stack([np.cos(theta), np.sin(theta)], axis=1)
-            return self._apply_hover_deadband(displacement, rho)
-        if self.action_mode == "waypoint":
-            # a = 1 maps to L, outside [0, L): the waypoint is kept just inside, so no commanded move hits a wall
-            waypoint = np.minimum(actions * self.map_size, np.nextafter(float(self.map_size), 0.0))
-            displacement = waypoint - self.positions
-        else:
-            displacement = (2.0 * actions - 1.0) * self.max_distance
+            return displacement, rho
+        displacement = (2.0 * actions - 1.0) * self.max_distance
         norm = np.sqrt(np.einsum("nd,nd->n", displacement, displacement))
         rho = np.minimum(norm / self.max_distance, 1.0)
-        return self._apply_hover_deadband(displacement * (rho * self.max_distance / np.maximum(norm, 1e-12))[:, None], rho)
+        return displacement * (rho * self.max_distance / np.maximum(norm, 1e-12))[:, None], rho
 
-    def _apply_hover_deadband(self, displacement: np.ndarray, rho: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Commanded moves shorter than ``hover_deadband`` l_max become hovering (no move, rho = 0)."""
-        if self.hover_deadband == 0.0:
-            return displacement, rho
-        still = rho < self.hover_deadband
-        return np.where(still[:, None], 0.0, displacement), np.where(still, 0.0, rho)
-
-    def _reward_cover(self, sq_dist: np.ndarray) -> np.ndarray:
+    def _coverage_credit(self, covering: np.ndarray) -> np.ndarray:
         """
-        How much of a cover each (UAV, PoI) pair counts for in the coverage rewards.
+        Each UAV's credit for this step's weighted coverage (``reward_mode="coverage"``): each covered PoI's worth
+        is split equally between the UAVs covering it.
 
-        :param sq_dist: (N, K) squared distances after the move
-        :return: (N, K) bool ``d <= R0`` (hard disc, ``coverage_edge`` 0), or float in [0, 1] with a soft edge:
-            clip((R0 + w / 2 - d) / w, 0, 1)
-        """
-        if self.coverage_edge == 0.0:
-            return sq_dist <= self.coverage_range**2
-        half = 0.5 * self.coverage_edge
-        return np.clip((self.coverage_range + half - np.sqrt(sq_dist)) / self.coverage_edge, 0.0, 1.0)
-
-    def _coverage_credit(self, in_range: np.ndarray, active: np.ndarray) -> np.ndarray:
-        """
-        Each UAV's credit for this step's weighted coverage (``reward_mode="coverage"``, ``"marginal"`` or ``"team"``).
-
-        ``"coverage"`` splits each covered PoI's worth equally between the UAVs covering it. ``"marginal"`` is the
-        difference reward: a UAV is credited only with the PoIs no other UAV covers, the coverage the team would
-        lose without it, so a UAV whose disc overlaps a teammate's gains nothing on the overlap. ``"team"`` credits
-        every UAV with the sum of the ``"coverage"`` credits: the team's weighted coverage, N / K per PoI covered.
-
-        :param in_range: (N, K) bool, PoI k within R0 of UAV i after the move, or with a soft disc edge
-            (``coverage_edge`` > 0) float in [0, 1], how much UAV i covers PoI k; then a PoI's worth counts by its
-            largest cover, split in proportion to the UAVs' covers, and the marginal rule credits UAV i with its
-            cover times the product of the others' uncovers (each reduces to the hard rule on 0/1 covers)
-        :param active: (N,) bool, the UAVs active this step
+        :param covering: (N, K) bool, PoI k within R0 of UAV i after the move, UAV i active this step
         :return: (N,) credit: (N / K) sum_k [i covers k] (1 - fairness_coef c_{t-1}(k)) / (number of UAVs covering k)
-            with ``"coverage"``; the same sum over the PoIs that only UAV i covers with ``"marginal"``; with ``"team"``
-            (N / K) sum_k [some UAV covers k] (1 - fairness_coef c_{t-1}(k)) for every UAV
         """
         # c_{t-1}(k) = visits before this step / (t - 1); coverage_scores still holds it (0 at the first step).
         weight = 1.0 - self.fairness_coef * self.coverage_scores
-        if self.coverage_edge > 0.0:
-            return self._soft_coverage_credit(in_range * active[:, None], weight)
-        covering = in_range & active[:, None]
-        n_covering = covering.sum(axis=0)
-        if self.reward_mode == "marginal":
-            weight = weight * (n_covering == 1)
-        elif self.reward_mode == "team":
-            team_credit = float(weight @ (n_covering > 0)) * (self.n_uavs / len(weight))
-            return np.full(self.n_uavs, team_credit)
-        else:
-            weight = weight / np.maximum(n_covering, 1)
+        weight = weight / np.maximum(covering.sum(axis=0), 1)
         return covering @ weight * (self.n_uavs / len(weight))
-
-    def _soft_coverage_credit(self, cover: np.ndarray, weight: np.ndarray) -> np.ndarray:
-        """
-        :meth:`_coverage_credit` with soft covers (``coverage_edge`` > 0).
-
-        :param cover: (N, K) float in [0, 1], 0 for inactive UAVs
-        :param weight: (K,) worth of each PoI, 1 - fairness_coef c_{t-1}(k)
-        :return: (N,) credit
-        """
-        scale = self.n_uavs / len(weight)
-        if self.reward_mode == "marginal":
-            # UAV i's cover times prod_{j != i} (1 - cover_jk): how much of PoI k no teammate covers (N is small)
-            uncover = 1.0 - cover
-            others = np.empty_like(cover)
-            for i in range(self.n_uavs):
-                others[i] = np.prod(np.delete(uncover, i, axis=0), axis=0)
-            return (cover * others) @ weight * scale
-        covered = cover.max(axis=0)
-        if self.reward_mode == "team":
-            return np.full(self.n_uavs, float(covered @ weight) * scale)
-        share = cover / np.maximum(cover.sum(axis=0), _MIN_POSITIVE)
-        return (share * covered) @ weight * scale
 
     # -----------------------------------------------------------------------------------------------------------------
     # Observations and state

@@ -32,30 +32,6 @@ def test_cartesian_actions_move_by_2a_minus_1_times_lmax():
     np.testing.assert_allclose(core.last_energy_spent, [0.5, 1.0])
 
 
-def test_waypoint_actions_fly_toward_the_point_a_times_l():
-    core = scenario(action_mode="waypoint", wall_mode="clip")
-    # L = 4. U0 at (0.5, 0.5), a = (0.125, 0.875): waypoint (0.5, 3.5), 3 away: one step of l_max = 1 -> (0.5, 1.5),
-    # rho 1. U1 at (2.5, 2.5), a = (0.75, 0.625): waypoint (3, 2.5), 0.5 away: reached, rho 0.5
-    core.step(np.array([[0.125, 0.875], [0.75, 0.625]]))
-    np.testing.assert_allclose(core.positions, [[0.5, 1.5], [3.0, 2.5]], atol=1e-12)
-    # e = eta l + E_h (1 - rho): 1 * 1 + 0 = 1.0 and 1 * 0.5 + 0.5 * 0.5 = 0.75
-    np.testing.assert_allclose(core.last_energy_spent, [1.0, 0.75])
-    # the same waypoint again: U1 is there and hovers (e = E_h)
-    core.step(np.array([[0.125, 0.875], [0.75, 0.625]]))
-    np.testing.assert_allclose(core.positions, [[0.5, 2.5], [3.0, 2.5]], atol=1e-12)
-    np.testing.assert_allclose(core.last_energy_spent, [1.0, 0.5])
-
-
-def test_waypoint_actions_never_hit_a_wall():
-    # a = 1 is the far edge: the waypoint is kept just inside [0, L), so even the corners are reached without a hit
-    core = scenario(action_mode="waypoint", wall_mode="refuse", start=[[3.5, 3.5], [0.5, 0.5]])
-    for _ in range(5):
-        core.step(np.array([[1.0, 1.0], [0.0, 0.0]]))
-        assert not core.last_wall_hit.any()
-    np.testing.assert_allclose(core.positions, [[4.0, 4.0], [0.0, 0.0]], atol=1e-9)
-    assert (core.positions < core.map_size).all()
-
-
 def test_clipped_wall_stops_at_the_boundary_and_charges_the_overshoot():
     core = scenario(start=[[0.5, 0.5], [2.5, 3.5]])
     # U1 asks for (2.5, 4.5): it stops at y just below 4 (flown 0.5, overshoot 0.5); U0 asks for (0.5, -0.5):
@@ -202,18 +178,6 @@ def test_fly_to_in_cartesian_encoding_reaches_the_target():
     np.testing.assert_allclose(core.last_energy_spent, [core.hover_energy, core.hover_energy], atol=1e-6)
 
 
-def test_fly_to_in_waypoint_encoding_reaches_the_target_and_hovers():
-    core = UAVCoverageCore(map_size=8, n_uavs=2, obs_size=8, start=[[1.0, 1.0], [6.0, 6.0]], action_mode="waypoint")
-    core.reset(seed=0)
-    targets = np.array([[5.0, 4.0], [6.0, 6.0]])
-    for _ in range(3):
-        core.step(fly_to(core.positions, targets, core.max_distance, action_mode="waypoint", map_size=core.map_size))
-    np.testing.assert_allclose(core.positions, targets, atol=1e-6)
-    np.testing.assert_allclose(core.last_energy_spent, [core.hover_energy, core.hover_energy], atol=1e-6)
-    with pytest.raises(ValueError, match="map_size"):
-        fly_to(core.positions, targets, core.max_distance, action_mode="waypoint")
-
-
 def test_teammate_channel_shows_the_active_teammates_within_radio_range():
     # L = S = 16 (one pixel per cell), R = 6. Map point (x, y) is pixel (15 - floor(y), floor(x)).
     start = [[1.0, 1.0], [2.0, 1.5], [10.0, 10.0], [1.5, 6.5], [14.2, 14.0], [14.0, 13.5]]
@@ -263,87 +227,6 @@ def test_cnn_policy_trains_and_predicts_on_the_teammate_channel():
     model.learn(40)
     actions, _ = model.predict(venv.reset(), deterministic=True)
     assert actions.shape == (2, 2) and np.isfinite(actions).all()
-
-
-def test_marginal_reward_credits_only_the_pois_no_teammate_covers():
-    # L = 4, R0 = 1 (inclusive), N = 2, K = 2 PoIs, both UAVs hovering: P0 (1, 1) under U0 at (1, 1) and U1 at
-    # (2, 1); P1 (3, 1) only under U1.
-    core = two_uav_core(pois=[[1.0, 1.0], [3.0, 1.0]], start=[[1.0, 1.0], [2.0, 1.0]], reward_mode="marginal")
-    # Step 1, c_0 = 0: P0 is covered by both, so it is nobody's marginal PoI; P1 is U1's alone: (N / K) * 1 = 1.
-    # Energy term 0.5 * E_h / (eta l_max) = 0.25 each; connected (distance 1 <= 2).
-    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
-    np.testing.assert_allclose(rewards, [0.0 - 0.25, 1.0 - 0.25])
-    # The metrics do not depend on the reward: both PoIs are covered
-    assert core.coverage == pytest.approx(1.0)
-    # Step 2, c_1 = (1, 1): P1 is worth 1 - 0.5 = 0.5 to U1
-    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
-    np.testing.assert_allclose(rewards, [-0.25, 0.5 - 0.25])
-
-
-def test_team_reward_credits_every_uav_with_the_teams_weighted_coverage():
-    # L = 4, R0 = 1, N = 2, K = 3: P0 (1, 1) under both UAVs, P1 (3, 1) under U1 only, P2 (3, 3) under neither.
-    core = two_uav_core(pois=[[1.0, 1.0], [3.0, 1.0], [3.0, 3.0]], start=[[1.0, 1.0], [2.0, 1.0]], reward_mode="team")
-    # Step 1, c_0 = 0: P0 and P1 covered, worth 1 each, the overlap counted once: (N / K) * 2 = 4 / 3 for both UAVs,
-    # minus each UAV's own energy term 0.5 * E_h / (eta l_max) = 0.25.
-    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
-    np.testing.assert_allclose(rewards, [4 / 3 - 0.25, 4 / 3 - 0.25])
-    assert core.last_shared_reward == pytest.approx(4 / 3)
-    # Step 2, c_1 = (1, 1, 0): P0 and P1 are worth 1 - 0.5 = 0.5 each: (2 / 3) * 1 = 2 / 3. U0 moves right by
-    # a = 0.75 -> dx = 0.5 l_max: it pays its own extra energy (eta 0.5 + E_h 0.5 = 0.75, term 0.375), U1 does not.
-    _, rewards, _, _ = core.step(np.array([[0.75, 0.5], [0.5, 0.5]]))
-    np.testing.assert_allclose(rewards, [2 / 3 - 0.375, 2 / 3 - 0.25])
-
-
-def test_soft_disc_edge_credits_covers_in_proportion():
-    # L = 4, R0 = 1, edge w = 1: a PoI at distance d counts clip((1.5 - d) / 1, 0, 1). N = 2, K = 2, both hovering.
-    # U0 at (1, 1), U1 at (2.25, 1). P0 (1, 1): d0 = 0 (cover 1), d1 = 1.25 (cover 0.25). P1 (3, 1): d0 = 2 (0),
-    # d1 = 0.75 (0.75). Worths 1 (c_0 = 0), N / K = 1, energy term 0.25 each.
-    start = [[1.0, 1.0], [2.25, 1.0]]
-    pois = [[1.0, 1.0], [3.0, 1.0]]
-    # Split: P0's largest cover 1, shared 1 : 0.25 -> 0.8 and 0.2; P1 all U1's at 0.75.
-    core = two_uav_core(pois=pois, start=start, coverage_edge=1.0)
-    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
-    np.testing.assert_allclose(rewards, [0.8 - 0.25, 0.2 + 0.75 - 0.25])
-    # The metrics keep the hard disc: P0 (U0 at d 0) and P1 (U1 at d 0.75 <= R0) are both covered
-    assert core.coverage == pytest.approx(1.0)
-    # Marginal: U0 gets 1 * (1 - 0.25) = 0.75 of P0; U1 gets 0.25 * (1 - 1) = 0 of P0 and 0.75 of P1.
-    core = two_uav_core(pois=pois, start=start, coverage_edge=1.0, reward_mode="marginal")
-    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
-    np.testing.assert_allclose(rewards, [0.75 - 0.25, 0.75 - 0.25])
-    # Team: largest covers 1 + 0.75 for both.
-    core = two_uav_core(pois=pois, start=start, coverage_edge=1.0, reward_mode="team")
-    _, rewards, _, _ = core.step(np.full((2, 2), 0.5))
-    np.testing.assert_allclose(rewards, [1.75 - 0.25, 1.75 - 0.25])
-    # A very narrow edge is the hard disc on these distances (no PoI within w / 2 of R0)
-    hard = two_uav_core(pois=pois, start=start)
-    narrow = two_uav_core(pois=pois, start=start, coverage_edge=0.1)
-    np.testing.assert_allclose(narrow.step(np.full((2, 2), 0.5))[1], hard.step(np.full((2, 2), 0.5))[1])
-    for bad in (-0.5, 2.5, float("nan")):
-        with pytest.raises(ValueError, match="coverage_edge"):
-            UAVCoverageCore(coverage_range=1.0, comm_range=2.0, coverage_edge=bad)
-
-
-def test_hover_deadband_turns_short_moves_into_hovering():
-    core = scenario(hover_deadband=0.2)  # l_max = 1
-    start = core.positions.copy()
-    # U0 a = (0.55, 0.5): d = (0.1, 0), rho 0.1 < 0.2: hovers, e = E_h = 0.5.
-    # U1 a = (0.5, 0.65): d = (0, 0.3), rho 0.3: moves, e = eta l + E_h (1 - rho) = 0.3 + 0.5 * 0.7 = 0.65
-    core.step(np.array([[0.55, 0.5], [0.5, 0.65]]))
-    np.testing.assert_allclose(core.positions, start + [[0.0, 0.0], [0.0, 0.3]], atol=1e-12)
-    np.testing.assert_allclose(core.last_energy_spent, [0.5, 0.65])
-    # Polar actions too: a1 = 0.15 < 0.2 hovers whatever the direction
-    polar = scenario(action_mode="polar", hover_deadband=0.2)
-    before = polar.positions.copy()
-    polar.step(np.array([[0.3, 0.15], [0.3, 0.0]]))
-    np.testing.assert_allclose(polar.positions, before, atol=1e-12)
-    np.testing.assert_allclose(polar.last_energy_spent, [0.5, 0.5])
-    # 0 keeps every move; 1 and negative values are refused
-    plain = scenario()
-    plain.step(np.array([[0.55, 0.5], [0.5, 0.5]]))
-    np.testing.assert_allclose(plain.positions[0], start[0] + [0.1, 0.0], atol=1e-12)
-    for bad in (1.0, -0.1, float("nan")):
-        with pytest.raises(ValueError, match="hover_deadband"):
-            UAVCoverageCore(hover_deadband=bad)
 
 
 def test_exact_position_mark_is_an_antialiased_cell_sized_square():

@@ -1,9 +1,9 @@
 """
-Summarise the JSON lines of ``benchmarks/uav_learning.py`` runs: one table row per label (mean ± std over seeds of
+Summarise the JSON lines of ``experiments/uav_learning.py`` runs: one table row per label (mean ± std over seeds of
 each seed's 20-episode means, and the worst-decile team return), and a figure of the learning curves (coverage and
 energy efficiency against timesteps, one line per seed).
 
-    python benchmarks/results_table.py runs/results/*.jsonl --figure docs/figures/learning_curves_v1.png
+    python experiments/results_table.py runs/results/*.jsonl --figure docs/figures/learning_curves_v1.png
 
 A run's label is its file name up to the last ``_s<seed>`` (``alpha05_s0.jsonl`` -> ``alpha05``).
 """

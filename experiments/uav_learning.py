@@ -7,7 +7,7 @@ random starts (the learning curve), then on ``--eval-episodes`` episodes with ra
 same for every run, so runs are paired), and prints one JSON line per evaluation. Timing is wall clock on one torch
 thread: pin each run to a core (``taskset -c 0``) and run at most one per core.
 
-    taskset -c 0 python benchmarks/uav_learning.py --env uav_coverage_cpu_v1 --timesteps 60000 --seed 0 \\
+    taskset -c 0 python experiments/uav_learning.py --env uav_coverage_cpu_v1 --timesteps 60000 --seed 0 \\
         --algo-kwargs '{"cvar_alpha": 0.5}' --out runs/learning/alpha05_s0.jsonl
 """
 
@@ -80,6 +80,28 @@ class LearningCurve(BaseCallback):
         return True
 
 
+#: Env variants measured with no gain (docs/results.md) and removed from the env; fb832a8 is the last commit with them.
+LAST_COMMIT_WITH_REMOVED_VARIANTS = "fb832a8"
+REMOVED_ENV_VARIANTS: dict[str, tuple[Any, ...] | None] = {
+    "action_mode": ("waypoint",),
+    "reward_mode": ("marginal", "team"),
+    "hover_deadband": None,  # any value
+    "coverage_edge": None,
+}
+
+
+def reject_removed_variants(env_kwargs: dict[str, Any]) -> None:
+    """Exit with a message naming the commit to check out when ``env_kwargs`` asks for a removed env variant."""
+    for name, values in REMOVED_ENV_VARIANTS.items():
+        if name in env_kwargs and (values is None or env_kwargs[name] in values):
+            commit = LAST_COMMIT_WITH_REMOVED_VARIANTS
+            raise SystemExit(
+                f"--env-kwargs: {name}={env_kwargs[name]!r} is a research variant that was removed from the env "
+                f"(it measured no gain, see docs/results.md); commit {commit} is the last that has it: "
+                f"git checkout {commit} (where the scripts of experiments/ were in benchmarks/)"
+            )
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument("--env", default="uav_coverage_cpu_v1", help="env id of sb3_maddpg's registry")
@@ -109,6 +131,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--save", help="save the trained model here")
     parser.add_argument("--tensorboard-log", help="TensorBoard folder")
     args = parser.parse_args(argv)
+    reject_removed_variants(args.env_kwargs)
     th.set_num_threads(args.threads)
 
     def emit(record: dict[str, Any]) -> None:

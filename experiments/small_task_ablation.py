@@ -2,7 +2,7 @@
 Ablation on the small UAV task of ``tests/test_maddpg_learning.py`` (8 x 8 map seen as 16 x 16 images, 2 UAVs, 4 PoIs in
 a corner, 20-step episodes): which of v1's env rules and MADDPG's stabilisers make the difference, with seeds 0, 1, 2.
 
-    python benchmarks/small_task_ablation.py            # prints one line per (variant, seed): random vs trained c_T
+    python experiments/small_task_ablation.py            # prints one line per (variant, seed): random vs trained c_T
 """
 
 import sys

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The runs behind docs/results.md's table: each configuration with seeds 0, 1 and 2 (chosen before the runs) on
 # uav_coverage_cpu_v1 with 300-step episodes, two runs at a time, each pinned to one core with one torch thread.
-#   bash benchmarks/run_results.sh [CONFIG ...]     (default: every configuration below)
-#   python benchmarks/results_table.py runs/results/*.jsonl --figure docs/figures/learning_curves_v1.png
+#   bash experiments/run_results.sh [CONFIG ...]     (default: every configuration below)
+#   python experiments/results_table.py runs/results/*.jsonl --figure docs/figures/learning_curves_v1.png
 # SEEDS (default "0 1 2"), TIMESTEPS (default: 28000 for the config exact_tpn005_g09_mates, 24000 for the others),
 # OUT (default runs/results) and CORES (default "0 1", one run at a time on each) override the defaults.
 set -euo pipefail
@@ -19,7 +19,7 @@ mkdir -p "$out"
 # learning rate 3e-4, smoothing 0.05, one quantile, the exact mark, the teammate channel, 28 000 timesteps, i.e.
 # exact_tpn005_g09_mates below; before that, on 2026-12-04, exact_tpn005_g09 with 24 000 timesteps, and before
 # 2026-12-04 classic_actor3e4).
-# benchmarks/run_stability.sh with max_grad_norm 1 and position_channel 1 passes the same as alpha1.
+# experiments/run_stability.sh with max_grad_norm 1 and position_channel 1 passes the same as alpha1.
 v1_common='"learning_starts": 2000, "train_freq": 1, "gamma": 0.95, "tau": 0.01, "learning_rate": 0.001,
   "critic_warmup_steps": 2000, "policy_delay": 2,
   "actor_reg": 0.001, "buffer_size": 100000, "batch_size": 64, "max_grad_norm": 1.0'
@@ -71,7 +71,7 @@ done
 
 run() {  # run CONFIG SEED CORE
   local config=$1 seed=$2 core=$3
-  taskset -c "$core" "$py" benchmarks/uav_learning.py --env "${ENV[$config]}" --env-kwargs "{\"max_cycles\": 300${ENV_KWARGS[$config]:+, ${ENV_KWARGS[$config]}}}" \
+  taskset -c "$core" "$py" experiments/uav_learning.py --env "${ENV[$config]}" --env-kwargs "{\"max_cycles\": 300${ENV_KWARGS[$config]:+, ${ENV_KWARGS[$config]}}}" \
     --algo-kwargs "${ALGO[$config]}" --policy-kwargs "${POLICY[$config]}" --timesteps "${timesteps:-${STEPS[$config]:-24000}}" \
     --eval-every 4000 --seed "$seed" --save "$out/${config}_s${seed}.zip" --out "$out/${config}_s${seed}.jsonl" \
     > "$out/${config}_s${seed}.log" 2>&1
@@ -87,4 +87,4 @@ queue() {  # queue INDEX: the jobs INDEX, INDEX + number of cores, ... on core c
 }
 for ((q = 0; q < ${#cores[@]}; q++)); do queue "$q" & done
 wait
-"$py" benchmarks/results_table.py "$out"/*.jsonl
+"$py" experiments/results_table.py "$out"/*.jsonl

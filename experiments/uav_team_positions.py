@@ -7,8 +7,8 @@ PoIs within R0 of a UAV hovering there) and how far small moves raise it: a coor
 time moves to the best point within 0.75 cells of where it is (a grid of 1/16 cell), until no move gains; a large
 gain with small moves means the learned layout is imprecise rather than a poor local optimum.
 
-    python benchmarks/uav_team_positions.py runs/pos/pos_s0.zip --episodes 4
-    python benchmarks/uav_team_positions.py runs/tm/teammates_s0.zip --env-kwargs '{"teammate_channel": true}'
+    python experiments/uav_team_positions.py runs/pos/pos_s0.zip --episodes 4
+    python experiments/uav_team_positions.py runs/tm/teammates_s0.zip --env-kwargs '{"teammate_channel": true}'
 """
 
 import argparse
@@ -16,11 +16,12 @@ import json
 
 import numpy as np
 import torch as th
+from uav_learning import reject_removed_variants  # the sibling file, not a package
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg_envs import uav_coverage_v1
 
-EVAL_SEED = 10_000  # the first evaluation episode of benchmarks/uav_learning.py and docs/results.md
+EVAL_SEED = 10_000  # the first evaluation episode of experiments/uav_learning.py and docs/results.md
 
 
 def covers(points: np.ndarray, pois: np.ndarray, coverage_range: float) -> np.ndarray:
@@ -66,6 +67,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=4)
     parser.add_argument("--seed", type=int, default=EVAL_SEED, help="seed of the first episode")
     args = parser.parse_args()
+    reject_removed_variants(args.env_kwargs)
     th.set_num_threads(1)
     model = MADDPG.load(args.model, device="cpu")
     finals = []

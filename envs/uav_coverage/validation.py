@@ -1,0 +1,72 @@
+"""Checks of the env's parameters: every message names the parameter, the value received and what is accepted."""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Any
+
+import numpy as np
+
+__all__ = ["MAX_REAL", "MIN_POSITIVE", "check_choice", "check_int", "check_points", "check_real"]
+
+# Bounds of every real parameter: with them, squared ranges, energies times distances, rewards times reward_scale and
+# quotients by eps stay finite and non-zero, so every accepted configuration runs.
+MAX_REAL = 1e12
+MIN_POSITIVE = 1e-12
+
+
+def check_int(name: str, value: Any, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or int(value) < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def check_real(
+    name: str,
+    value: Any,
+    *,
+    low: float = 0.0,
+    low_inclusive: bool = False,
+    high: float | None = None,
+    high_inclusive: bool = False,
+) -> float:
+    ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(float(value))
+    if ok:
+        value_f = float(value)
+        ok = value_f >= low if low_inclusive else value_f > low
+        if high is not None:
+            ok = ok and (value_f <= high if high_inclusive else value_f < high)
+    if not ok:
+        accepted = f"a finite number {'>=' if low_inclusive else '>'} {low:g}"
+        if high is not None:
+            accepted += f" and {'<=' if high_inclusive else '<'} {high:g}"
+        raise ValueError(f"{name} must be {accepted}, got {value!r}")
+    if abs(float(value)) > MAX_REAL or (low == 0.0 and not low_inclusive and float(value) < MIN_POSITIVE):
+        lowest, highest = (0.0 if low_inclusive else MIN_POSITIVE), (MAX_REAL if high is None else high)
+        interval = f"[{lowest:g}, {highest:g}{']' if high is None else ')'}"
+        raise ValueError(
+            f"{name} must lie in {interval} (beyond, the simulation's squares, products and quotients overflow "
+            f"or divide by zero), got {value!r}"
+        )
+    return float(value)
+
+
+def check_choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise ValueError(f"{name} must be one of {', '.join(map(repr, choices))}, got {value!r}")
+    return value
+
+
+def check_points(name: str, value: Any, n_rows: int | None, map_size: int) -> np.ndarray:
+    """Check an array of map points of shape (n_rows, 2) (any number of rows when ``n_rows`` is None)."""
+    try:
+        points = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{name} must be an array of shape ({n_rows or 'K'}, 2) of numbers, got {value!r}") from error
+    expected = f"({n_rows if n_rows is not None else 'K'}, 2)"
+    if points.ndim != 2 or points.shape[1] != 2 or points.shape[0] < 1 or (n_rows is not None and points.shape[0] != n_rows):
+        raise ValueError(f"{name} must be an array of shape {expected}, got shape {points.shape}")
+    if not np.isfinite(points).all() or (points < 0).any() or (points >= map_size).any():
+        raise ValueError(f"{name} must lie inside the area [0, {map_size})^2, got {points.tolist()!r}")
+    return points

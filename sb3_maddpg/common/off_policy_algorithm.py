@@ -681,11 +681,9 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
             buffer = buffer.with_copies(n_copies, self.buffer_size)
         # Storage where this model keeps its buffer: on its device (storage_device) or in host memory
         assert self.replay_buffer_class is not None
-        if issubclass(self.replay_buffer_class, DeviceReplayBuffer):
-            storage = self.replay_buffer_kwargs.get("storage_device", self.device)
-            if not isinstance(buffer, DeviceReplayBuffer) or buffer.storage_device != storage:
-                plain = buffer.to_numpy_buffer() if isinstance(buffer, DeviceReplayBuffer) else buffer
-                buffer = DeviceReplayBuffer.from_buffer(plain, storage_device=storage, device=self.device)
-        elif isinstance(buffer, DeviceReplayBuffer):
-            buffer = buffer.to_numpy_buffer()
+        on_device = issubclass(self.replay_buffer_class, DeviceReplayBuffer)
+        storage = self.replay_buffer_kwargs.get("storage_device", self.device) if on_device else None
+        if isinstance(buffer, DeviceReplayBuffer) != on_device or (on_device and buffer.storage_device != storage):
+            target = DeviceReplayBuffer if on_device else MultiAgentReplayBuffer
+            buffer = target.from_buffer(buffer, storage_device=storage, device=self.device)
         return buffer

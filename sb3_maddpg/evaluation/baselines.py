@@ -131,7 +131,6 @@ def fly_to(
     max_distance: float,
     tolerance: float = 1e-3,
     action_mode: str = "polar",
-    map_size: float | None = None,
 ) -> np.ndarray:
     """
     Actions that fly each UAV straight toward its target, at most ``max_distance`` per step, and hover once there.
@@ -140,18 +139,12 @@ def fly_to(
     :param targets: (N, 2) targets
     :param max_distance: l_max
     :param tolerance: distance under which a UAV hovers (rho = 0) instead of correcting float rounding
-    :param action_mode: the env's action encoding, ``"polar"``, ``"cartesian"`` or ``"waypoint"``
-    :param map_size: L, the area's side (needed for waypoint actions)
+    :param action_mode: the env's action encoding, ``"polar"`` or ``"cartesian"``
     :return: (N, 2) float32 actions in [0, 1]^2: (theta / 2 pi, rho) when polar, (dx, dy) / (2 l_max) + 0.5 when
-        Cartesian, the target / L (the position / L once there) for waypoints
+        Cartesian
     """
     delta = targets - positions
     distance = np.hypot(delta[:, 0], delta[:, 1])
-    if action_mode == "waypoint":
-        if map_size is None:
-            raise ValueError("fly_to with action_mode='waypoint' needs map_size, the area's side")
-        goal = np.where((distance > tolerance)[:, None], targets, positions)
-        return np.clip(goal / map_size, 0.0, 1.0).astype(np.float32)
     if action_mode == "cartesian":
         step = np.where(distance > tolerance, np.minimum(1.0, max_distance / np.maximum(distance, 1e-12)), 0.0)
         return np.clip(0.5 + delta * step[:, None] / (2.0 * max_distance), 0.0, 1.0).astype(np.float32)
@@ -187,7 +180,7 @@ class GreedyStaticController:
         if self.targets is None:
             raise RuntimeError("GreedyStaticController.reset() must be called at the start of each episode")
         core = _core(env)
-        actions = fly_to(core.positions, self.targets, core.max_distance, action_mode=core.action_mode, map_size=core.map_size)
+        actions = fly_to(core.positions, self.targets, core.max_distance, action_mode=core.action_mode)
         return {agent: actions[env.possible_agents.index(agent)] for agent in observations}
 
 

@@ -141,6 +141,7 @@ def test_optimize_two_trials_on_sqlite(tmp_path: Path, monkeypatch: pytest.Monke
     [
         (["train", "--env", "no_such_env_v0"], "unknown env 'no_such_env_v0'"),
         (["train", "--env", "CartPole-v1"], "needs a multi-agent env"),
+        (["train", "--algo", "matd3", "--env", "CartPole-v1"], "--algo matd3 needs a multi-agent env"),
         (["train", "--env", ENV, "--env-kwargs", "obs_size:17"], "obs_size must be a positive multiple"),
         (["train", "--env", ENV, "--env-kwargs", "no_such_kwarg:1"], "no_such_kwarg"),
         (["train", "--env", ENV, "--env-kwargs", "obs_size:sixteen"], "cannot read the value of 'obs_size'"),

@@ -37,10 +37,13 @@ def test_the_package_ships_its_configs_and_train_reads_them_from_anywhere(tmp_pa
 @pytest.mark.parametrize("n_envs", [1, 2])
 def test_sb3_progress_bar_counts_timesteps_not_agent_rows(n_envs: int) -> None:
     model = MADDPG("CnnPolicy", tiny_venv(n_envs), buffer_size=200, learning_starts=10, batch_size=8)
-    plain = ProgressBarCallback()  # what RL Zoo's -P adds
-    model.learn(40, callback=[plain])
+    callbacks = [ProgressBarCallback()]  # what RL Zoo's -P adds; RL Zoo closes callbacks[0] after learn
+    plain = callbacks[0]
+    model.learn(40, callback=callbacks)
     assert model.num_timesteps == 40
     assert not hasattr(plain, "pbar")  # replaced by the joint-step bar, never started
+    assert isinstance(callbacks[0], JointStepProgressBarCallback) and callbacks[0].pbar.n == 40
+    callbacks[0].on_training_end()
     joint = JointStepProgressBarCallback()
     model.learn(40, callback=joint, progress_bar=True)
     assert joint.pbar.n == joint.pbar.total == 40

@@ -84,11 +84,14 @@ class JointStepProgressBarCallback(ProgressBarCallback):
 
 
 def _count_joint_steps(callback: BaseCallback) -> BaseCallback:
-    """The callback tree with each of SB3's plain ``ProgressBarCallback`` replaced by a joint-step one."""
+    """
+    The callback tree with each of SB3's plain ``ProgressBarCallback`` replaced by a joint-step one, in the lists
+    themselves: RL Zoo closes ``self.callbacks[0]``, its progress bar, after ``learn``.
+    """
     if type(callback) is ProgressBarCallback:
         return JointStepProgressBarCallback()
     if isinstance(callback, CallbackList):
-        callback.callbacks = [_count_joint_steps(child) for child in callback.callbacks]
+        callback.callbacks[:] = [_count_joint_steps(child) for child in callback.callbacks]
     return callback
 
 

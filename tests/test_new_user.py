@@ -108,5 +108,5 @@ def test_the_install_hint_works_outside_a_clone() -> None:
 
 def test_usage_docs_quote_no_stale_timing() -> None:
     assert "2 min 40 s" not in (ROOT / "docs" / "usage.md").read_text()
-    assert "quickstart.sh" not in (ROOT / "zoo_configs" / "maddpg.yml").read_text().split("uav_coverage_fast_v0:")[0][-300:]
+    assert "about three minutes" not in (ROOT / "zoo_configs" / "maddpg.yml").read_text()
     assert os.path.isfile(ROOT / ".ci" / "wheel_check.sh")

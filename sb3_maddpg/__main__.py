@@ -2,8 +2,8 @@
 The project's command: ``python -m sb3_maddpg <command> ...`` (also installed as ``sb3_maddpg``).
 
 - ``train``, ``optimize`` and ``enjoy`` run RL Zoo's own train, Optuna and enjoy code (every ``rl_zoo3`` flag works)
-  with MADDPG and the multi-agent envs registered into it; ``--algo maddpg``, ``--env uav_coverage_v0`` and
-  ``-conf zoo_configs/maddpg.yml`` are the defaults.
+  with MADDPG and the multi-agent envs registered into it; ``--algo maddpg``, ``--env uav_coverage_cpu_v1`` and
+  ``-conf`` the packaged ``zoo_configs/<algo>.yml`` are the defaults. ``record-video`` is RL Zoo's ``record_video``.
 - ``evaluate`` compares a trained model with the random and greedy static baselines and draws the report's figures.
 - ``plot`` draws the report's training figures from a run's logs.
 
@@ -25,11 +25,18 @@ import yaml
 from sb3_maddpg.zoo.registry import UsageError, check_env_kwargs
 
 PROG = "sb3_maddpg"
-ZOO_COMMANDS = ("train", "optimize", "enjoy")
+ZOO_COMMANDS = ("train", "optimize", "enjoy", "record-video")
+# The commands that load a trained agent (RL Zoo's enjoy and record_video flags)
+PLAY_COMMANDS = ("enjoy", "record-video")
 DEFAULT_ALGO = "maddpg"
 # The library's algorithms, each with its RL Zoo hyperparameter file zoo_configs/<algo>.yml
 MULTIAGENT_ALGOS = ("maddpg", "matd3")
-DEFAULT_ENV = "uav_coverage_v0"
+# The CPU configuration of the quick start; uav_coverage_v0 (the report's) and uav_coverage_v1 are meant for a GPU.
+DEFAULT_ENV = "uav_coverage_cpu_v1"
+DEFAULTS_HELP = (
+    f"defaults: --algo {DEFAULT_ALGO} --env {DEFAULT_ENV} (the CPU configuration) -conf the algorithm's packaged "
+    "zoo_configs/<algo>.yml (maddpg.yml, matd3.yml)"
+)
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -65,13 +72,27 @@ def _has_flag(argv: list[str], *flags: str) -> bool:
     return any(arg == flag or arg.startswith(flag + "=") for arg in argv for flag in flags)
 
 
+def packaged_config(algo: str) -> Path | None:
+    """
+    The library's own RL Zoo hyperparameter file of an algorithm, as RL Zoo ships ``rl_zoo3/hyperparams/<algo>.yml``.
+
+    :param algo: ``maddpg`` or ``matd3``
+    :return: ``sb3_maddpg/zoo_configs/<algo>.yml`` where the package is installed from a wheel, ``zoo_configs/<algo>.yml``
+        beside the package in a source checkout, or None
+    """
+    package = Path(__file__).resolve().parent
+    for folder in (package / "zoo_configs", package.parent / "zoo_configs"):
+        if (folder / f"{algo}.yml").is_file():
+            return folder / f"{algo}.yml"
+    return None
+
+
 def _default_config(algo: str) -> str:
-    """The project's ``zoo_configs/<algo>.yml``: in the working directory, else next to the installed sources."""
-    config = Path("zoo_configs") / f"{algo}.yml"
-    for candidate in (Path.cwd() / config, Path(__file__).resolve().parent.parent / config):
-        if candidate.is_file():
-            return os.fspath(candidate)
-    raise UsageError(f"no -conf given and {config} was not found; pass -conf PATH/TO/{algo}.yml")
+    """The file ``train`` and ``optimize`` read when no ``-conf`` is given: the one the package ships."""
+    config = packaged_config(algo)
+    if config is None:
+        raise UsageError(f"no -conf given and this installation has no {algo}.yml; pass -conf PATH/TO/{algo}.yml")
+    return os.fspath(config)
 
 
 def _zoo_preparser(command: str) -> argparse.ArgumentParser:
@@ -81,7 +102,7 @@ def _zoo_preparser(command: str) -> argparse.ArgumentParser:
     parser.add_argument("--env", default=DEFAULT_ENV)
     parser.add_argument("--env-kwargs", nargs="+")
     parser.add_argument("--gym-packages", nargs="+", default=[])
-    if command == "enjoy":
+    if command in PLAY_COMMANDS:
         parser.add_argument("-f", "--folder", default="logs")
         parser.add_argument("--exp-id", type=int, default=0)
         parser.add_argument("--load-best", action="store_true")
@@ -98,6 +119,15 @@ def _zoo_preparser(command: str) -> argparse.ArgumentParser:
         parser.add_argument("--storage")
         parser.add_argument("--study-name")
     return parser
+
+
+def _import_gym_packages(modules: list[str]) -> None:
+    """Import the ``--gym-packages`` modules, which register their envs (RL Zoo's flag)."""
+    for module in modules:
+        try:
+            importlib.import_module(module)
+        except ImportError as error:
+            raise UsageError(f"--gym-packages: cannot import {module!r}: {error}") from error
 
 
 def _check_env(env_id: str, algo: str) -> None:
@@ -181,13 +211,11 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
 
     argv = list(argv)
     if _has_flag(argv, "-h", "--help"):
+        # RL Zoo's help follows, with RL Zoo's own defaults for --algo and --env
+        print(f"{PROG} {command}: {DEFAULTS_HELP}; RL Zoo's options follow.\n")
         return argv
     args, _ = _zoo_preparser(command).parse_known_args(argv)
-    for module in args.gym_packages:
-        try:
-            importlib.import_module(module)
-        except ImportError as error:
-            raise UsageError(f"--gym-packages: cannot import {module!r}: {error}") from error
+    _import_gym_packages(args.gym_packages)
 
     if not _has_flag(argv, "--algo"):
         argv = ["--algo", DEFAULT_ALGO, *argv]
@@ -199,7 +227,7 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     if env_kwargs is not None and is_multiagent_env(args.env):
         check_env_kwargs(args.env, env_kwargs, flag="--env-kwargs")
 
-    if command == "enjoy":
+    if command in PLAY_COMMANDS:
         if not _has_flag(argv, "-f", "--folder"):
             # RL Zoo's default folder downloads models from the Hugging Face hub; this project's runs are in logs/.
             argv += ["-f", args.folder]
@@ -283,6 +311,8 @@ def run_zoo_command(command: str, argv: list[str]) -> None:
     zoo_argv = prepare_zoo_argv(command, argv)
     if command == "enjoy":
         integration.run_enjoy(zoo_argv)
+    elif command == "record-video":
+        integration.run_record_video(zoo_argv)
     else:
         integration.run_train(zoo_argv)
 
@@ -296,6 +326,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
     from sb3_maddpg.evaluation.report import DEFAULT_ENV_ID, ModelEnvMismatchError, evaluate_and_report, find_run_config
     from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS
 
+    _import_gym_packages(args.gym_packages)
     model_path = args.model
     run_env_id, run_env_kwargs = None, {}
     if model_path is not None:
@@ -312,7 +343,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
     if env_id not in MULTIAGENT_ENVS:
         raise UsageError(f"unknown env {env_id!r}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
     env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs") or {}
-    check_env_kwargs(env_id, {**run_env_kwargs, "start": "random", **env_kwargs}, flag="--env-kwargs")
+    check_env_kwargs(env_id, {**run_env_kwargs, **env_kwargs}, flag="--env-kwargs")
     _check_writable(args.out, "--out")
     try:
         evaluate_and_report(
@@ -359,7 +390,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG,
         description="MADDPG with quantile-CVaR critics for Stable-Baselines3, run through RL Zoo.",
-        epilog=f"`{PROG} COMMAND -h` shows a command's options (train, optimize and enjoy: RL Zoo's).",
+        epilog=f"`{PROG} COMMAND -h` shows a command's options (train, optimize, enjoy and record-video: RL Zoo's). "
+        f"For train, optimize, enjoy and record-video, {DEFAULTS_HELP}.",
     )
     from sb3_maddpg import __version__
 
@@ -368,12 +400,17 @@ def build_parser() -> argparse.ArgumentParser:
     commands.add_parser("train", help="train with RL Zoo (rl_zoo3 train flags)", add_help=False)
     commands.add_parser("optimize", help="tune hyperparameters with RL Zoo's Optuna search (default storage: SQLite)")
     commands.add_parser("enjoy", help="watch a trained agent with RL Zoo's enjoy (rl_zoo3 enjoy flags)")
+    commands.add_parser(
+        "record-video",
+        help="write a video of a trained agent with RL Zoo's record_video (-n timesteps, -o folder, default <run>/videos)",
+    )
 
     evaluate = commands.add_parser(
         "evaluate",
-        help="evaluate a model against the random and greedy static baselines; write tables and figures",
-        description="Run N episodes (start='random', deterministic actions) for the model and the two baselines, "
-        "print the table of c_T, f_T, e_T, eta_T (mean ± std) and write CSV, JSON and the report's figures.",
+        help="evaluate a model against baselines (random actions; on the UAV envs the greedy static placement)",
+        description="Run N episodes (deterministic actions) for the model and the baselines, print the table "
+        "(mean ± std of the team return and the episode length, and on the UAV envs, with start='random', of c_T, "
+        "f_T, e_T, eta_T) and write CSV, JSON (with each agent's return) and figures.",
     )
     source = evaluate.add_mutually_exclusive_group(required=True)
     source.add_argument("--model", help="a saved MADDPG model (.zip), e.g. logs/maddpg/uav_coverage_v0_1/uav_coverage_v0.zip")
@@ -381,6 +418,9 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--episodes", type=int, default=10, help="episodes per method (default: 10)")
     evaluate.add_argument("--out", default=os.path.join("results", "evaluation"), help="output folder")
     evaluate.add_argument("--env", help="env id (default: the model's training env, else uav_coverage_v0)")
+    evaluate.add_argument(
+        "--gym-packages", nargs="+", default=[], help="modules to import first, which register envs (as in train)"
+    )
     evaluate.add_argument(
         "--env-kwargs",
         nargs="+",
@@ -397,9 +437,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     plot = commands.add_parser(
         "plot",
-        help="draw the report's training figures from a run's logs",
-        description="Fairness vs coverage, fairness vs energy efficiency and each metric vs episode, from a training "
-        "run's monitor.csv (one point per episode) or its TensorBoard events.",
+        help="draw the training figures from a run's logs",
+        description="The team return, each agent's return and the episode length vs episode, and on the UAV envs "
+        "fairness vs coverage, fairness vs energy efficiency and each metric vs episode, from a training run's "
+        "monitor.csv (one point per episode) or its TensorBoard events.",
     )
     plot.add_argument(
         "--log",

@@ -58,7 +58,7 @@ def test_train_leaves_model_checkpoints_config_and_monitor(trained_run: Path) ->
     assert (run / "rl_model_100_steps.zip").is_file() and (run / "rl_model_200_steps.zip").is_file()
     assert (run / ENV / "config.yml").is_file() and (run / ENV / "args.yml").is_file()
     lines = (run / "monitor.csv").read_text().splitlines()
-    assert lines[1].startswith("r,l,t,coverage,fairness")
+    assert lines[1].startswith("r,l,t,r_uav_0,r_uav_1,r_uav_2,coverage,fairness")
     # one line per joint episode: 200 timesteps of 20-step episodes
     assert len(lines) - 2 == 10
     # each line is a whole joint episode: length 20 joint steps

@@ -141,6 +141,7 @@ def test_plot_training_logs_from_a_monitor_file(tmp_path) -> None:
 
     paths = plot_training_logs(run, tmp_path / "figures")
     assert [path.name for path in paths] == [
+        "train_returns_vs_episode.png",
         "train_fairness_vs_coverage.png",
         "train_fairness_vs_energy_efficiency.png",
         "train_metrics_vs_episode.png",

@@ -23,5 +23,6 @@ def test_readme_library_example_runs(tmp_path, monkeypatch) -> None:
     venv = namespace["venv"]
     assert actions.shape == (venv.num_envs, 2)
     assert np.all((actions >= 0) & (actions <= 1))
+    assert set(namespace["agent_actions"]) == set(namespace["env"].possible_agents)
     assert (tmp_path / "maddpg_uav.zip").is_file()
     assert list((tmp_path / "runs").rglob("events.out.tfevents.*"))

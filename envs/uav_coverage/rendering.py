@@ -45,9 +45,10 @@ def coverage_colour(scores: np.ndarray) -> np.ndarray:
     return (np.stack([red, green, np.zeros_like(scores)], axis=1) * 220).astype(np.uint8)
 
 
-def render_frame(core: UAVCoverageCore, size: int = 512, panel: int = 28) -> np.ndarray:
+def render_frame(core: UAVCoverageCore, size: int = 512, panel: int = 44) -> np.ndarray:
     """
-    Draw the current state: PoIs coloured by c_t(k), UAVs, coverage discs, communication links and the step's metrics.
+    Draw the current state: PoIs coloured by c_t(k), UAVs, coverage discs, communication links, the step's metrics
+    and, under them, the key of the PoI colours (a bar from c_t(k) = 0, red, to 1, green).
 
     :param core: the simulation to draw
     :param size: side in pixels of the map part of the frame
@@ -100,5 +101,12 @@ def render_frame(core: UAVCoverageCore, size: int = 512, panel: int = 28) -> np.
         f"energy={core.energy_ratio:.3f}  efficiency={core.energy_efficiency:.3f}"
     )
     draw.rectangle([0, size, size, size + panel], fill=(235, 235, 235))
-    draw.text((4, size + panel // 2 - 6), text, fill=(0, 0, 0))
+    draw.text((4, size + 4), text, fill=(0, 0, 0))
+    # The key of the PoI colours
+    top, bar_left, bar_width = size + panel - 16, 150, 120
+    draw.text((4, top), "PoI coverage c_t(k):  0", fill=(0, 0, 0))
+    bar = coverage_colour(np.linspace(0.0, 1.0, bar_width))
+    for offset, colour in enumerate(bar.tolist()):
+        draw.line([(bar_left + offset, top + 1), (bar_left + offset, top + 10)], fill=tuple(colour))
+    draw.text((bar_left + bar_width + 4, top), "1  (never covered -> always covered)", fill=(0, 0, 0))
     return np.asarray(image, dtype=np.uint8).copy()

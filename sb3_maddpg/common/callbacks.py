@@ -50,9 +50,10 @@ class EpisodeMetricsCallback(BaseCallback):
     disconnections) through SB3's logger, next to ``rollout/ep_rew_mean``.
 
     It reads the infos once per *joint* episode (the row of agent 0 of each copy, agent-major rows as made by
-    ``make_multiagent_vec_env``), not once per agent row. Each logged value is the mean over the episodes that
-    ended since the last dump of the logger (``logger.record_mean``), SB3 style. Envs whose infos lack the keys
-    (e.g. ``simple_spread_v3``) cost one dict lookup per finished episode and log nothing.
+    ``make_multiagent_vec_env``), not once per agent row, and logs each agent's return of the episode as
+    ``<prefix>/ep_rew_<agent>`` beside SB3's team return ``rollout/ep_rew_mean``. Each logged value is the mean over
+    the episodes that ended since the last dump of the logger (``logger.record_mean``), SB3 style. Envs whose infos
+    lack the metric keys (e.g. ``simple_spread_v3``) log only the agents' returns.
 
     :param info_keys: metric names to read from the infos
     :param per_agent_keys: the names among ``info_keys`` that count one agent's events; their team value
@@ -90,6 +91,9 @@ class EpisodeMetricsCallback(BaseCallback):
         n_agents = self.n_agents or 1
         # All agents of a copy end their joint episode together, so agent 0's row says whether the copy ended.
         for first_row in np.flatnonzero(np.asarray(dones)[::n_agents]) * n_agents:
+            # Beside SB3's rollout/ep_rew_mean (the team return), each agent's return
+            for agent, value in infos[first_row].get("episode", {}).get("agent_r", {}).items():
+                self.logger.record_mean(f"{self.prefix}/ep_rew_{agent}", value)
             metrics = joint_episode_metrics(infos, int(first_row), n_agents, self.info_keys, self.per_agent_keys)
             if not metrics:
                 continue

@@ -45,10 +45,12 @@ from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.common.device_buffer import DeviceReplayBuffer, resolve_storage_device
+from sb3_maddpg.common.evaluation import evaluate_joint_episodes
 from sb3_maddpg.common.model_files import READ_ERRORS, read_maddpg_data
 from sb3_maddpg.common.noise import DecayingGaussianNoise, RowBatchedActionNoise, set_noise_timestep
 from sb3_maddpg.common.random_state import capture_random_states, restore_random_states
 from sb3_maddpg.common.validation import check_int, check_off_policy_arguments
+from sb3_maddpg.common.vec_env import is_agent_dict, rows_from_agent_dict
 
 SelfMultiAgentOffPolicyAlgorithm = TypeVar("SelfMultiAgentOffPolicyAlgorithm", bound="MultiAgentOffPolicyAlgorithm")
 
@@ -79,6 +81,18 @@ class JointStepProgressBarCallback(ProgressBarCallback):
     def _on_step(self) -> bool:
         self.pbar.update(self.model.n_copies)  # type: ignore[attr-defined]
         return True
+
+
+def _count_joint_steps(callback: BaseCallback) -> BaseCallback:
+    """
+    The callback tree with each of SB3's plain ``ProgressBarCallback`` replaced by a joint-step one, in the lists
+    themselves: RL Zoo closes ``self.callbacks[0]``, its progress bar, after ``learn``.
+    """
+    if type(callback) is ProgressBarCallback:
+        return JointStepProgressBarCallback()
+    if isinstance(callback, CallbackList):
+        callback.callbacks[:] = [_count_joint_steps(child) for child in callback.callbacks]
+    return callback
 
 
 class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
@@ -289,20 +303,27 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         state: tuple[np.ndarray, ...] | None = None,
         episode_start: np.ndarray | None = None,
         deterministic: bool = False,
-    ) -> tuple[np.ndarray, tuple[np.ndarray, ...] | None]:
+    ) -> tuple[np.ndarray | dict[str, np.ndarray], tuple[np.ndarray, ...] | None]:
         """
-        Actions of SB3's rows (row = copy * n_agents + agent; row r is acted on by the policy's agent r mod n_agents).
+        Actions of SB3's rows (row = copy * n_agents + agent; row r is acted on by the policy's agent r mod n_agents),
+        or, given a PettingZoo ``ParallelEnv``'s observation dict (agent -> observation), the dict of the agents' actions.
 
         Observations from ``make_multiagent_vec_env`` carry their team (:class:`~sb3_maddpg.common.vec_env.AgentRows`):
         those of another team than the model's are refused, wherever they come from (``evaluate_policy``, RL Zoo's
         ``enjoy``, a loop of your own).
 
-        :param observation: the observation rows
+        :param observation: the observation rows, or a dict agent -> observation of the model's agents (those still
+            in the episode; an agent missing from the dict gets no action)
         :param state: unused (no recurrent policy)
         :param episode_start: unused
         :param deterministic: unused: the actors are deterministic, exploration noise is added during ``learn``
-        :return: the actions and None
+        :return: the actions (rows, or a dict agent -> action) and None
         """
+        if is_agent_dict(observation):
+            assert self.agent_names is not None
+            rows, agents = rows_from_agent_dict(observation, self.agent_names)  # type: ignore[arg-type]
+            actions, state = self.predict(rows, state, episode_start, deterministic)
+            return {agent: actions[row] for row, agent in enumerate(self.agent_names) if agent in agents}, state
         names = getattr(observation, "possible_agents", None)
         if names is not None:
             self.check_team(list(names), "the observations' VecEnv")
@@ -505,7 +526,10 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
             callback = ConvertCallback(callback)
         if not contains_callback(callback, EpisodeMetricsCallback):
             callback = CallbackList([callback, EpisodeMetricsCallback()])
-        if progress_bar:
+        # SB3's progress bar (RL Zoo's -P) would count VecEnv rows; evaluations would count agent rows as episodes
+        callback = _count_joint_steps(callback)
+        evaluate_joint_episodes(callback)
+        if progress_bar and not contains_callback(callback, JointStepProgressBarCallback):
             callback = CallbackList([callback, JointStepProgressBarCallback()])
         callback.init_callback(self)
         return callback

@@ -73,6 +73,33 @@ def tag_team(observations: np.ndarray, possible_agents: tuple[str, ...]) -> Agen
     return tagged
 
 
+def is_agent_dict(observation: Any) -> bool:
+    """
+    :param observation: what ``predict`` was given
+    :return: whether it is a PettingZoo ``ParallelEnv``'s observation dict (agent -> observation)
+    """
+    return isinstance(observation, dict)
+
+
+def rows_from_agent_dict(observations: dict[str, Any], agents: list[str]) -> tuple[AgentRows, set[str]]:
+    """
+    The rows of one environment copy from a PettingZoo observation dict, in the team's row order.
+
+    :param observations: agent -> observation, for the agents still in the episode (a subset of ``agents``)
+    :param agents: the team, in row order
+    :return: the rows (an agent missing from the dict gets a row of zeros) and the agents present
+    """
+    unknown = [str(agent) for agent in observations if agent not in agents]
+    if unknown or not observations:
+        raise ValueError(
+            f"expected an observation dict of the team's agents ({', '.join(agents)}), got the keys "
+            f"{', '.join(map(str, observations)) or 'none'}"
+        )
+    first = np.asarray(next(iter(observations.values())))
+    rows = np.stack([np.asarray(observations[agent]) if agent in observations else np.zeros_like(first) for agent in agents])
+    return tag_team(rows, tuple(agents)), set(observations)
+
+
 def env_generator(env: Any) -> np.random.Generator | None:
     """
     The random generator of a ParallelEnv, where it can be read: its ``np_random`` attribute (Gymnasium's name).
@@ -192,7 +219,8 @@ class MultiAgentVecEnv(_CopySeeds, VecEnvWrapper):
     - keeps the final step's infos at an episode end and puts the infos of the automatic reset in ``reset_infos``
       (SuperSuit would merge them, the reset's values overwriting the final step's);
     - adds SB3's episode statistics once per joint episode, in the info of the copy's agent 0 row:
-      ``{"r": team return (sum over agents and steps), "l": joint steps, "t": seconds since creation}``;
+      ``{"r": team return (sum over agents and steps), "l": joint steps, "t": seconds since creation,
+      "agent_r": {agent: that agent's return}}``;
     - returns observations as :class:`AgentRows`, which carry the team (``possible_agents``) to ``MADDPG.predict``;
     - can replay each copy's last reset (:meth:`reset_states`, :meth:`restore_reset_states`), which ``MADDPG`` saves
       and restores so that a run resumed at an episode boundary continues exactly.
@@ -214,6 +242,7 @@ class MultiAgentVecEnv(_CopySeeds, VecEnvWrapper):
         self._base_seed: int | None = None
         self._pending_reset_states: list[dict[str, Any]] | None = None
         self._episode_returns = np.zeros(self.n_copies, dtype=np.float64)
+        self._agent_returns = np.zeros((self.n_copies, self.n_agents), dtype=np.float64)
         self._episode_lengths = np.zeros(self.n_copies, dtype=np.int64)
         self._t_start = time.time()
 
@@ -289,11 +318,16 @@ class MultiAgentVecEnv(_CopySeeds, VecEnvWrapper):
         self._reset_options()
         self.reset_infos = [info for copy in range(self.n_copies) for info in self._copy_reset_infos(copy)]
         self._episode_returns[:] = 0.0
+        self._agent_returns[:] = 0.0
         self._episode_lengths[:] = 0
         return tag_team(obs, tuple(self.possible_agents))
 
     def step_async(self, actions: np.ndarray) -> None:
         self._gym_vec_env.step_async(actions)
+
+    def render(self, mode: str | None = None) -> np.ndarray | None:
+        """The first copy's frame, drawn in the env's own ``render_mode`` (PettingZoo envs take no mode argument)."""
+        return self._gym_vec_env.render()
 
     def step_wait(self) -> VecEnvStepReturn:
         obs, rewards, terminations, truncations, raw_infos = self._gym_vec_env.step_wait()
@@ -305,6 +339,7 @@ class MultiAgentVecEnv(_CopySeeds, VecEnvWrapper):
         copy_done = (terminations | truncations).all(axis=1)
         rewards = np.asarray(rewards, dtype=np.float32)
         self._episode_returns += rewards.reshape(self.n_copies, n_agents).sum(axis=1)
+        self._agent_returns += rewards.reshape(self.n_copies, n_agents)
         self._episode_lengths += 1
         for copy in np.flatnonzero(copy_done):
             for agent in range(n_agents):
@@ -314,8 +349,10 @@ class MultiAgentVecEnv(_CopySeeds, VecEnvWrapper):
                 "r": float(self._episode_returns[copy]),
                 "l": int(self._episode_lengths[copy]),
                 "t": round(time.time() - self._t_start, 6),
+                "agent_r": dict(zip(self.possible_agents, map(float, self._agent_returns[copy]), strict=True)),
             }
             self._episode_returns[copy] = 0.0
+            self._agent_returns[copy] = 0.0
             self._episode_lengths[copy] = 0
             self.reset_infos[copy * n_agents : (copy + 1) * n_agents] = self._copy_reset_infos(copy)
         dones = np.repeat(copy_done, n_agents)

@@ -1,4 +1,4 @@
-"""Evaluation of trained models and baselines on the UAV coverage environment, with the report's figures."""
+"""Evaluation of trained models and baselines on multi-agent envs, with the report's figures on the UAV coverage env."""
 
 from sb3_maddpg.evaluation.baselines import (
     Controller,
@@ -12,6 +12,7 @@ from sb3_maddpg.evaluation.figures import (
     plot_fairness_vs_coverage,
     plot_fairness_vs_efficiency,
     plot_metrics_vs_episode,
+    plot_returns_vs_episode,
     plot_training_logs,
     save_episode_figures,
 )
@@ -31,6 +32,7 @@ __all__ = [
     "plot_fairness_vs_coverage",
     "plot_fairness_vs_efficiency",
     "plot_metrics_vs_episode",
+    "plot_returns_vs_episode",
     "plot_training_logs",
     "run_episode",
     "save_episode_figures",

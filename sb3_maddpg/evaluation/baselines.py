@@ -35,7 +35,8 @@ class Controller(Protocol):
 
 class RandomController:
     """
-    Uniform random actions in [0, 1]^2 for every agent (random direction, random distance): the lower baseline.
+    Uniform random actions in every agent's Box action space (in the UAV env: [0, 1]^2, a random direction and
+    distance): the lower baseline.
 
     :param name: label in tables and figures
     """
@@ -48,7 +49,12 @@ class RandomController:
         self.rng = np.random.default_rng(seed)
 
     def act(self, observations: dict[str, np.ndarray], env: ParallelEnv) -> dict[str, np.ndarray]:
-        return {agent: self.rng.random(2, dtype=np.float64).astype(np.float32) for agent in observations}
+        actions = {}
+        for agent in observations:
+            space = env.action_space(agent)
+            draw = space.low + (space.high - space.low) * self.rng.random(space.shape, dtype=np.float64)
+            actions[agent] = draw.astype(space.dtype)
+        return actions
 
 
 def greedy_placement(

@@ -1,5 +1,10 @@
-"""Run controllers for whole episodes of ``uav_coverage_v0`` and summarise the episode-end metrics."""
+"""
+Run controllers for whole episodes of a multi-agent env and summarise them: the team return (the sum of the agents'
+rewards), each agent's return (``return_<agent>``), the length, and the UAV envs' episode-end metrics where the env
+reports them.
+"""
 
+import contextlib
 import csv
 import json
 import os
@@ -16,7 +21,14 @@ from sb3_maddpg.evaluation.baselines import Controller
 
 # The report's metrics at the last step of an episode (SPEC §1.5): c_T, f_T, e_T, eta_T.
 METRICS: tuple[str, ...] = ("coverage", "fairness", "energy", "energy_efficiency")
-METRIC_SYMBOLS: dict[str, str] = {"coverage": "c_T", "fairness": "f_T", "energy": "e_T", "energy_efficiency": "eta_T"}
+METRIC_SYMBOLS: dict[str, str] = {
+    "coverage": "c_T",
+    "fairness": "f_T",
+    "energy": "e_T",
+    "energy_efficiency": "eta_T",
+    "return": "team return",
+    "length": "length",
+}
 # Also kept per episode (team totals), not part of the summary table.
 COUNTS: tuple[str, ...] = ("wall_hits", "disconnections")
 
@@ -49,19 +61,20 @@ def run_episode(
     """
     Play one episode to its end.
 
-    :param env: a ``uav_coverage_v0`` ParallelEnv (with ``render_mode="rgb_array"`` to record frames)
+    :param env: a PettingZoo ParallelEnv (with ``render_mode="rgb_array"`` to record frames)
     :param controller: what acts
     :param seed: the episode's seed (start positions with ``start="random"``)
     :param record: if given, filled with frames, state images and the final simulation
     :param state_steps: steps at which to keep the state image and the rendered frame (0 = after reset)
     :param frame_every: keep one rendered frame every this many steps
-    :return: the episode-end metrics (``coverage``, ``fairness``, ``energy``, ``energy_efficiency``), the team's
-        ``wall_hits`` and ``disconnections``, the team ``return`` (sum over agents and steps) and ``length``
+    :return: the episode-end metrics (``coverage``, ``fairness``, ``energy``, ``energy_efficiency``) and the team's
+        ``wall_hits`` and ``disconnections`` where the env reports them, the team ``return`` (sum over agents and
+        steps), each agent's return ``return_<agent>`` and ``length``
     """
     observations, infos = env.reset(seed=seed)
     controller.reset(env, seed=seed)
     wanted = set(state_steps)
-    team_return = 0.0
+    agent_returns = dict.fromkeys(env.possible_agents, 0.0)
     step = 0
 
     def keep(step: int, last: bool = False) -> None:
@@ -73,7 +86,8 @@ def run_episode(
         if frame is not None and (step % frame_every == 0 or last):
             record.frames.append(frame)
         if step in wanted:
-            record.state_images[step] = env.state()
+            with contextlib.suppress(NotImplementedError, AttributeError):
+                record.state_images[step] = env.state()
             if frame is not None:
                 record.render_frames[step] = frame
 
@@ -81,17 +95,20 @@ def run_episode(
     while env.agents:
         actions = controller.act(observations, env)
         observations, rewards, terminations, truncations, infos = env.step(actions)
-        team_return += float(sum(rewards.values()))
+        for agent, reward in rewards.items():
+            agent_returns[agent] += float(reward)
         step += 1
         keep(step, last=not env.agents)
     if record is not None:
         record.core = getattr(env, "core", None)
 
-    last_infos = list(infos.values())
-    metrics = {key: float(last_infos[0][key]) for key in METRICS}
+    last_infos = list(infos.values()) or [{}]
+    metrics = {key: float(last_infos[0][key]) for key in METRICS if key in last_infos[0]}
     for key in COUNTS:
-        metrics[key] = float(sum(info.get(key, 0) for info in last_infos))
-    metrics["return"] = team_return
+        if key in last_infos[0]:
+            metrics[key] = float(sum(info.get(key, 0) for info in last_infos))
+    metrics["return"] = float(sum(agent_returns.values()))
+    metrics.update({f"return_{agent}": value for agent, value in agent_returns.items()})
     metrics["length"] = float(step)
     return metrics
 
@@ -135,7 +152,7 @@ def evaluate_controllers(
                 metrics = run_episode(env, controller, seed + episode, this_record, state_steps, frame_every)
                 episodes.append(metrics)
                 if verbose:
-                    values = "  ".join(f"{METRIC_SYMBOLS[key]}={metrics[key]:.4f}" for key in METRICS)
+                    values = "  ".join(f"{METRIC_SYMBOLS.get(key, key)}={metrics[key]:.4f}" for key in _table_keys(metrics))
                     print(f"{controller.name} episode {episode + 1}/{n_episodes}: {values}")
         finally:
             env.close()
@@ -153,7 +170,7 @@ def summarize(results: dict[str, list[dict[str, float]]]) -> list[dict[str, Any]
     rows = []
     for name, episodes in results.items():
         row: dict[str, Any] = {"method": name, "episodes": len(episodes)}
-        for key in (*METRICS, *COUNTS):
+        for key in episodes[0]:
             values = np.array([episode[key] for episode in episodes], dtype=np.float64)
             row[f"{key}_mean"] = float(values.mean())
             row[f"{key}_std"] = float(values.std())
@@ -163,18 +180,25 @@ def summarize(results: dict[str, list[dict[str, float]]]) -> list[dict[str, Any]
 
 def format_table(summary: Sequence[dict[str, Any]]) -> str:
     """
-    The summary as a Markdown table of ``mean ± std``.
+    The summary as a Markdown table of ``mean ± std``: the UAV metrics c_T, f_T, e_T, eta_T where the env has them,
+    the team return and the episode length (each agent's return is in the files).
 
     :param summary: rows from :func:`summarize`
     :return: the table
     """
-    header = ["method", "episodes", *(METRIC_SYMBOLS[key] for key in METRICS)]
+    keys = _table_keys({key[: -len("_mean")]: None for key in summary[0] if key.endswith("_mean")})
+    header = ["method", "episodes", *(METRIC_SYMBOLS.get(key, key) for key in keys)]
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     for row in summary:
         cells = [str(row["method"]), str(row["episodes"])]
-        cells += [f"{row[f'{key}_mean']:.4f} ± {row[f'{key}_std']:.4f}" for key in METRICS]
+        cells += [f"{row[f'{key}_mean']:.4f} ± {row[f'{key}_std']:.4f}" for key in keys]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def _table_keys(metrics: dict[str, Any]) -> list[str]:
+    """The keys of the printed table, in order: the UAV metrics present, the team return and the length."""
+    return [key for key in (*METRICS, "return", "length") if key in metrics]
 
 
 def write_results(
@@ -202,7 +226,7 @@ def write_results(
         writer.writeheader()
         writer.writerows(summary)
 
-    episode_keys = [*METRICS, *COUNTS, "return", "length"]
+    episode_keys = list(next(iter(results.values()))[0])
     with atomic_open(paths["episodes.csv"], "w", newline="") as file:
         writer = csv.writer(file)
         writer.writerow(["method", "episode", *episode_keys])

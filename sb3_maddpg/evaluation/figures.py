@@ -25,6 +25,8 @@ LABELS: dict[str, str] = {
     "wall_hits": "wall hits",
     "disconnections": "disconnections",
     "r": "team return",
+    "return": "team return",
+    "length": "episode length",
 }
 
 # One series: metric name -> values, one per episode (plus "x", the episode index or timestep, when not 0..n-1).
@@ -157,6 +159,26 @@ def plot_metrics_vs_episode(
     return Path(path)
 
 
+def plot_returns_vs_episode(
+    series: dict[str, Series], path: str | os.PathLike, x_label: str = "episode", window: int = 1, title: str | None = None
+) -> Path:
+    """
+    The team return, each agent's return (``return_<agent>``) and the episode length against episode, one panel each:
+    the figure every env has.
+
+    :param series: name -> metric -> per-episode values (an optional ``"x"`` entry gives the x values)
+    :param path: output image file
+    :param x_label: label of the x axis
+    :param window: moving-average window drawn over the raw values (1: none)
+    :param title: figure title
+    :return: the path written
+    """
+    keys = {key for values in series.values() for key in values}
+    agents = sorted(key for key in keys if key.startswith("return_"))
+    metrics = [key for key in ("return", *agents, "length") if key in keys]
+    return plot_metrics_vs_episode(series, path, metrics=metrics, x_label=x_label, window=window, title=title)
+
+
 def save_episode_figures(record: EpisodeRecord, out_dir: str | os.PathLike, prefix: str = "", fps: int = 10) -> list[Path]:
     """
     The figures of one recorded episode: state images and rendered frames at the chosen steps, the coverage heat
@@ -248,7 +270,8 @@ def load_monitor_series(monitor_file: str | os.PathLike) -> Series:
 def load_tensorboard_series(log_path: str | os.PathLike, prefix: str = "rollout") -> Series:
     """
     Read the episode metrics logged by ``EpisodeMetricsCallback`` from TensorBoard event files (means over the
-    episodes between two dumps, against timesteps).
+    episodes between two dumps, against timesteps), or where there are none (envs without them) SB3's
+    ``rollout/ep_rew_mean`` and ``rollout/ep_len_mean`` as ``return`` and ``length``.
 
     :param log_path: a folder holding event files (searched recursively)
     :param prefix: logger section of the metrics
@@ -268,18 +291,31 @@ def load_tensorboard_series(log_path: str | os.PathLike, prefix: str = "rollout"
                 events = accumulator.Scalars(tag)
                 series[metric] = np.array([event.value for event in events])
                 series["x"] = np.array([event.step for event in events], dtype=np.float64)
+        if not series:
+            for name, tag in (("return", f"{prefix}/ep_rew_mean"), ("length", f"{prefix}/ep_len_mean")):
+                if tag in tags:
+                    events = accumulator.Scalars(tag)
+                    series[name] = np.array([event.value for event in events])
+                    series["x"] = np.array([event.step for event in events], dtype=np.float64)
         if series:
             break
     return series
+
+
+def _monitor_returns(series: Series) -> Series:
+    """A monitor's columns under the names of the evaluation: r -> return, r_<agent> -> return_<agent>, l -> length."""
+    renamed = {"r": "return", "l": "length"}
+    return {renamed.get(key, "return_" + key[2:] if key.startswith("r_") else key): values for key, values in series.items()}
 
 
 def plot_training_logs(
     log_path: str | os.PathLike, out_dir: str | os.PathLike, window: int | None = None, name: str = "training"
 ) -> list[Path]:
     """
-    The report's training figures from a run's logs: fairness vs coverage, fairness vs energy efficiency and each
-    metric vs episode. Reads the run's ``monitor.csv`` (one point per episode) or, failing that, its TensorBoard
-    event files (one point per logger dump, against timesteps).
+    The training figures from a run's logs, for any env: the team return, each agent's return and the episode length
+    vs episode (``train_returns_vs_episode.png``); for envs with the UAV metrics, the report's fairness vs coverage,
+    fairness vs energy efficiency and each metric vs episode. Reads the run's ``monitor.csv`` (one point per episode)
+    or, failing that, its TensorBoard event files (one point per logger dump, against timesteps).
 
     :param log_path: an RL Zoo run folder, a ``monitor.csv`` file, or a TensorBoard log folder
     :param out_dir: output folder (created)
@@ -293,26 +329,33 @@ def plot_training_logs(
     x_label = "episode"
     for monitor_file in find_monitor_files(log_path):
         candidate = load_monitor_series(monitor_file)
-        if candidate and not np.all(np.isnan(candidate.get("coverage", np.array([np.nan])))):
-            series = candidate
+        if candidate.get("r") is not None and len(candidate["r"]):
+            series = _monitor_returns(candidate)
             break
     if not series and Path(log_path).is_dir():
         series = load_tensorboard_series(log_path)
         x_label = "timesteps"
-    if not series or "coverage" not in series:
+    if not series:
         raise FileNotFoundError(
-            f"no training log with coverage metrics under {log_path} "
-            "(expected a monitor.csv from `python -m sb3_maddpg train` or TensorBoard events with rollout/coverage)"
+            f"no training log under {log_path} (expected a monitor.csv from `python -m sb3_maddpg train` or "
+            "TensorBoard events with rollout/ep_rew_mean)"
         )
     out.mkdir(parents=True, exist_ok=True)
-    n = len(series["coverage"])
+    n = len(next(values for key, values in series.items() if key != "x"))
     if window is None:
         window = max(1, n // 20)
     runs = {name: series}
-    return [
-        plot_fairness_vs_coverage(runs, out / "train_fairness_vs_coverage.png", "Fairness vs coverage (training episodes)"),
-        plot_fairness_vs_efficiency(
-            runs, out / "train_fairness_vs_energy_efficiency.png", "Fairness vs energy efficiency (training episodes)"
-        ),
-        plot_metrics_vs_episode(runs, out / "train_metrics_vs_episode.png", x_label=x_label, window=window),
-    ]
+    paths = []
+    if "return" in series:
+        paths.append(plot_returns_vs_episode(runs, out / "train_returns_vs_episode.png", x_label=x_label, window=window))
+    if not np.all(np.isnan(series.get("coverage", np.array([np.nan])))):
+        paths += [
+            plot_fairness_vs_coverage(
+                runs, out / "train_fairness_vs_coverage.png", "Fairness vs coverage (training episodes)"
+            ),
+            plot_fairness_vs_efficiency(
+                runs, out / "train_fairness_vs_energy_efficiency.png", "Fairness vs energy efficiency (training episodes)"
+            ),
+            plot_metrics_vs_episode(runs, out / "train_metrics_vs_episode.png", x_label=x_label, window=window),
+        ]
+    return paths

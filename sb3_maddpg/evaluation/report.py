@@ -15,6 +15,7 @@ from sb3_maddpg.evaluation.figures import (
     plot_fairness_vs_coverage,
     plot_fairness_vs_efficiency,
     plot_metrics_vs_episode,
+    plot_returns_vs_episode,
     save_episode_figures,
     series_from_results,
 )
@@ -98,9 +99,12 @@ def evaluate_and_report(
     verbose: int = 1,
 ) -> dict[str, Any]:
     """
-    Run ``n_episodes`` with ``start="random"`` for the model (deterministic actions) and for the two baselines
-    (random actions; greedy static placement), print the table and write ``results.csv``, ``results.json``,
-    ``episodes.csv``, ``results.md`` and the figures into ``out_dir``.
+    Run ``n_episodes`` for the model (deterministic actions) and the baselines, print the table and write
+    ``results.csv``, ``results.json``, ``episodes.csv``, ``results.md`` and the figures into ``out_dir``.
+
+    Any registered multi-agent env: team return, each agent's return and the episode length, against random actions
+    (``returns_vs_episode.png``, and the GIF where the env renders to arrays). On the UAV envs also, with
+    ``start="random"``: c_T, f_T, e_T, eta_T, the greedy static placement and the report's figures.
 
     :param out_dir: output folder
     :param n_episodes: episodes per method
@@ -121,16 +125,19 @@ def evaluate_and_report(
     env_id = env_id or run_env_id or DEFAULT_ENV_ID
     if env_id not in MULTIAGENT_ENVS:
         raise ValueError(f"unknown env {env_id!r}; registered multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
-    kwargs = {**run_env_kwargs, "start": "random", **(env_kwargs or {})}
+    kwargs = {**run_env_kwargs, **(env_kwargs or {})}
     kwargs.pop("render_mode", None)
 
     check_writable_folder(out_dir, "out_dir")
     probe = make_multiagent_env(env_id, **kwargs)
     core = getattr(probe, "core", None)
+    render_mode = "rgb_array" if "rgb_array" in probe.metadata.get("render_modes", []) else None
+    max_cycles = int(core.max_cycles) if core is not None else getattr(probe.unwrapped, "max_cycles", None)
     probe.close()
-    if core is None:
-        raise ValueError(f"{env_id} has no coverage metrics: evaluate runs uav_coverage envs only")
-    max_cycles = int(core.max_cycles)
+    if core is not None:
+        # The UAV envs: new start positions every episode unless asked otherwise
+        kwargs = {**run_env_kwargs, "start": "random", **(env_kwargs or {})}
+        kwargs.pop("render_mode", None)
 
     controllers: list[Controller] = []
     if model_path is not None:
@@ -142,16 +149,19 @@ def evaluate_and_report(
         except (AssertionError, KeyError, ValueError, TypeError, RuntimeError) as error:
             raise ModelEnvMismatchError(f"{model_path} is not a MADDPG model that can be loaded here: {error}") from error
         controllers.append(ModelController(model, name="maddpg"))
-    controllers += [RandomController(), GreedyStaticController()]
-    record_name = controllers[0].name if model_path is not None else "greedy_static"
+    controllers.append(RandomController())
+    if core is not None:
+        # it reads the simulation
+        controllers.append(GreedyStaticController())
+    record_name = controllers[0].name if model_path is not None or core is None else "greedy_static"
 
     if state_steps is None:
-        state_steps = sorted({0, max_cycles // 2, max_cycles})
+        state_steps = sorted({0, max_cycles // 2, max_cycles}) if core is not None else []
     if frame_every is None:
-        frame_every = max(1, max_cycles // 100)
+        frame_every = max(1, (max_cycles or 100) // 100)
 
     results, record = evaluate_controllers(
-        lambda: make_multiagent_env(env_id, render_mode="rgb_array", **kwargs),
+        lambda: make_multiagent_env(env_id, render_mode=render_mode, **kwargs),
         controllers,
         n_episodes,
         seed=seed,
@@ -179,13 +189,15 @@ def evaluate_and_report(
     series = series_from_results(results)
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
-    files["fairness_vs_coverage.png"] = plot_fairness_vs_coverage(series, figures / "fairness_vs_coverage.png")
-    files["fairness_vs_energy_efficiency.png"] = plot_fairness_vs_efficiency(
-        series, figures / "fairness_vs_energy_efficiency.png"
-    )
-    files["metrics_vs_episode.png"] = plot_metrics_vs_episode(
-        series, figures / "metrics_vs_episode.png", x_label="evaluation episode"
-    )
+    files["returns_vs_episode.png"] = plot_returns_vs_episode(series, figures / "returns_vs_episode.png")
+    if core is not None:
+        files["fairness_vs_coverage.png"] = plot_fairness_vs_coverage(series, figures / "fairness_vs_coverage.png")
+        files["fairness_vs_energy_efficiency.png"] = plot_fairness_vs_efficiency(
+            series, figures / "fairness_vs_energy_efficiency.png"
+        )
+        files["metrics_vs_episode.png"] = plot_metrics_vs_episode(
+            series, figures / "metrics_vs_episode.png", x_label="evaluation episode"
+        )
     if record is not None:
         if not gif:
             record.frames.clear()

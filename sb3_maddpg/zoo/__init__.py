@@ -6,7 +6,7 @@ RL Zoo's own train, enjoy and Optuna machinery.
 >>> register_multiagent_env("my_env_v0", "my_package.my_env:parallel_env")  # then: --env my_env_v0
 """
 
-from sb3_maddpg.zoo.integration import register_with_rl_zoo, run_enjoy, run_train
+from sb3_maddpg.zoo.integration import register_with_rl_zoo, run_enjoy, run_record_video, run_train
 from sb3_maddpg.zoo.registry import (
     MULTIAGENT_ENVS,
     MultiAgentEnvSpec,
@@ -23,5 +23,6 @@ __all__ = [
     "register_multiagent_env",
     "register_with_rl_zoo",
     "run_enjoy",
+    "run_record_video",
     "run_train",
 ]

@@ -5,6 +5,7 @@ import os
 import pickle
 import shutil
 import socket
+import warnings
 from collections.abc import Callable
 from copy import deepcopy
 from typing import Any
@@ -397,6 +398,12 @@ def create_multiagent_test_env(
     can_render_human = should_render and "human" in render_modes
     if can_render_human and "render_mode" not in env_kwargs:
         env_kwargs["render_mode"] = "human"
+    elif should_render and "render_mode" not in env_kwargs:
+        warnings.warn(
+            f"{env_id} cannot be shown on screen (its render modes: {', '.join(render_modes) or 'none'}); "
+            f"write a video instead: sb3_maddpg record-video --env {env_id} (or pass --no-render)",
+            stacklevel=2,
+        )
 
     env: VecEnv = make_zoo_multiagent_vec_env(env_id, n_envs, seed, env_kwargs, vec_env_cls)
     if log_dir is not None:

@@ -1,6 +1,6 @@
 """
-Register MADDPG, MATD3 and the multi-agent envs into RL Zoo's own machinery, then run its ``train``, ``enjoy`` and Optuna
-code unchanged.
+Register MADDPG, MATD3 and the multi-agent envs into RL Zoo's own machinery, then run its ``train``, ``enjoy``,
+``record_video`` and Optuna code unchanged.
 
 RL Zoo reads its algorithms from ``rl_zoo3.utils.ALGOS``, its samplers from ``rl_zoo3.hyperparams_opt``, builds
 training envs in ``ExperimentManager.create_envs`` and test envs with ``create_test_env``. :func:`register_with_rl_zoo`
@@ -94,3 +94,28 @@ def run_enjoy(argv: list[str]) -> None:
         enjoy_module.enjoy()
     finally:
         sys.argv = saved
+
+
+def run_record_video(argv: list[str]) -> None:
+    """
+    RL Zoo's ``record_video`` script (a video of ``-n`` timesteps of a trained agent, written with SB3's
+    ``VecVideoRecorder`` to ``-o`` or ``<run>/videos``) with the given command-line arguments.
+
+    :param argv: arguments as for ``python -m rl_zoo3.record_video``
+    """
+    import runpy
+    import sys
+
+    import rl_zoo3.utils
+
+    from sb3_maddpg.zoo.exp_manager import create_multiagent_test_env
+
+    register_with_rl_zoo()
+    saved_argv, saved_create = sys.argv, rl_zoo3.utils.create_test_env
+    # The script is a `__main__` block that imports create_test_env from rl_zoo3.utils when it runs
+    rl_zoo3.utils.create_test_env = functools.partial(create_multiagent_test_env, _fallback=saved_create)
+    sys.argv = ["sb3_maddpg record-video", *argv]
+    try:
+        runpy.run_module("rl_zoo3.record_video", run_name="__main__")
+    finally:
+        sys.argv, rl_zoo3.utils.create_test_env = saved_argv, saved_create

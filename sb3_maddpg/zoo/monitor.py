@@ -20,7 +20,8 @@ class JointEpisodeMonitor(VecEnvWrapper):
 
     It is not a ``VecMonitor``: SB3's ``evaluate_policy`` would then wait for an ``episode`` key in every agent row.
     The team return and length are the episode statistics that ``make_multiagent_vec_env`` puts in the info of each
-    copy's agent-0 row (the team return is the sum of the agents' rewards).
+    copy's agent-0 row (the team return is the sum of the agents' rewards); each agent's return follows in a column
+    ``r_<agent>``.
 
     :param venv: a VecEnv made by ``make_multiagent_vec_env`` (possibly wrapped), agent-major rows
         (row = copy * n_agents + agent)
@@ -38,11 +39,14 @@ class JointEpisodeMonitor(VecEnvWrapper):
         super().__init__(venv)
         self.n_agents: int = venv.n_agents  # type: ignore[attr-defined]
         self.info_keywords = tuple(info_keywords)
+        self.agent_names = [str(agent) for agent in getattr(venv, "possible_agents", [])]
         self.t_start = time.time()
         self.results_writer: ResultsWriter | None = None
         if filename is not None:
             self.results_writer = ResultsWriter(
-                filename, header={"t_start": self.t_start, "env_id": "multi-agent"}, extra_keys=self.info_keywords
+                filename,
+                header={"t_start": self.t_start, "env_id": "multi-agent"},
+                extra_keys=(*(f"r_{agent}" for agent in self.agent_names), *self.info_keywords),
             )
         self.episodes: list[dict[str, Any]] = []
 
@@ -60,6 +64,8 @@ class JointEpisodeMonitor(VecEnvWrapper):
                 "l": int(episode["l"]),
                 "t": round(time.time() - self.t_start, 6),
             }
+            agent_returns = episode.get("agent_r", {})
+            row.update({f"r_{agent}": round(float(agent_returns.get(agent, np.nan)), 6) for agent in self.agent_names})
             # The CSV has a fixed header: an env without a metric leaves its column empty.
             row.update({key: metrics.get(key, "") for key in self.info_keywords})
             self.episodes.append(row)
@@ -88,22 +94,31 @@ class _JointDones(np.ndarray):
 class EnjoyVecEnv(VecEnvWrapper):
     """
     The multi-agent VecEnv as RL Zoo's ``enjoy`` loop expects it: ``dones`` usable as a truth value when one copy
-    runs, and ``render("human")`` a no-op for envs that only render to arrays.
+    runs, ``render("human")`` a no-op for envs that only render to arrays, and in every row the *team* reward of its
+    copy (the sum of the agents' rewards), so that enjoy's "Episode Reward" is the team return, as
+    ``rollout/ep_rew_mean`` and ``eval/mean_reward`` are; each agent's return is printed beside it at the end of
+    each of the first copy's episodes (with ``verbose=1``).
 
     :param venv: a multi-agent VecEnv
     :param can_render_human: whether the env draws on screen itself
     """
 
-    def __init__(self, venv: VecEnv, can_render_human: bool = False) -> None:
+    def __init__(self, venv: VecEnv, can_render_human: bool = False, verbose: int = 1) -> None:
         super().__init__(venv)
         self.can_render_human = can_render_human
+        self.n_agents: int = venv.n_agents  # type: ignore[attr-defined]
+        self.verbose = verbose
 
     def reset(self) -> Any:
         return self.venv.reset()
 
     def step_wait(self) -> VecEnvStepReturn:
         obs, rewards, dones, infos = self.venv.step_wait()
-        return obs, rewards, np.asarray(dones, dtype=bool).view(_JointDones), infos
+        team_rewards = np.asarray(rewards, dtype=np.float32).reshape(-1, self.n_agents).sum(axis=1)
+        agent_returns = infos[0].get("episode", {}).get("agent_r")
+        if self.verbose and dones[0] and agent_returns:
+            print("Agent returns: " + ", ".join(f"{agent} {value:.2f}" for agent, value in agent_returns.items()))
+        return obs, np.repeat(team_rewards, self.n_agents), np.asarray(dones, dtype=bool).view(_JointDones), infos
 
     def render(self, mode: str | None = None) -> np.ndarray | None:
         if mode == "human" and not self.can_render_human:

@@ -47,7 +47,7 @@ class MultiAgentEnvSpec:
         except ImportError as error:
             raise ImportError(
                 f"The env {self.env_id!r} needs the package of {module_name!r} ({error}); "
-                "install the project with `pip install -e '.[zoo]'`"
+                'install the zoo extra: pip install "sb3_maddpg[zoo]" (from a clone: pip install -e ".[zoo]")'
             ) from error
         return getattr(module, attribute)
 

@@ -36,7 +36,7 @@ from stable_baselines3.common.noise import ActionNoise, VectorizedActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.preprocessing import get_action_dim
-from stable_baselines3.common.save_util import load_from_pkl
+from stable_baselines3.common.save_util import open_path
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
 from stable_baselines3.common.utils import should_collect_more_steps
 from stable_baselines3.common.vec_env import VecEnv
@@ -45,7 +45,7 @@ from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.common.device_buffer import DeviceReplayBuffer, resolve_storage_device
-from sb3_maddpg.common.model_files import READ_ERRORS, read_maddpg_data
+from sb3_maddpg.common.model_files import READ_ERRORS, read_maddpg_data, restricted_loads
 from sb3_maddpg.common.noise import DecayingGaussianNoise, RowBatchedActionNoise, set_noise_timestep
 from sb3_maddpg.common.random_state import capture_random_states, restore_random_states
 from sb3_maddpg.common.validation import check_int, check_off_policy_arguments
@@ -618,7 +618,10 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         :return: the model
         :raises ValueError: if the file is not a model of this library or is damaged, or the env's team is not the model's
         """
-        read_maddpg_data(path)  # type: ignore[arg-type]
+        # Every pickled class parameter is read here, without running code (model_files.restricted_loads), and handed
+        # to SB3 as custom_objects, so that SB3's load unpickles none; those that ``kwargs`` replace are not read.
+        given = {**{key: value for key, value in kwargs.items() if key != "policy_kwargs"}, **(custom_objects or {})}
+        custom_objects = read_maddpg_data(path, None, given)  # type: ignore[arg-type]
         try:
             model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
         except READ_ERRORS as error:
@@ -652,7 +655,9 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         """
         name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the replay buffer file"
         try:
-            buffer = load_from_pkl(path, self.verbose)
+            # A pickle file: read without running code (only what a replay buffer of this library is made of)
+            with open_path(path, "r", self.verbose, suffix="pkl") as file:
+                buffer = restricted_loads(file.read())
         except (pickle.UnpicklingError, EOFError, AttributeError, ImportError) as error:
             raise ValueError(f"{name} is not a replay buffer that can be read here, or is damaged: {error}") from error
         self.replay_buffer = self._fit_replay_buffer(buffer, name)

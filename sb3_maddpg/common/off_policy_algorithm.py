@@ -680,9 +680,13 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
                 "load a buffer saved with the same env configuration"
             )
         n_copies = self.n_envs // self.n_agents
-        if buffer.n_copies != n_copies:
+        # Another number of copies, or another buffer_size (e.g. -params buffer_size:... on resume): laid out again
+        if buffer.n_copies != n_copies or buffer.buffer_size != max(self.buffer_size // n_copies, 1):
             if self.verbose >= 1:
-                print(f"Laying the replay buffer out again: {buffer.n_copies} environment copies -> {n_copies}")
+                print(
+                    f"Laying the replay buffer out again: {buffer.n_copies} environment copies -> {n_copies}, "
+                    f"{buffer.buffer_size * buffer.n_copies} -> {self.buffer_size} joint transitions"
+                )
             buffer = buffer.with_copies(n_copies, self.buffer_size)
         # Storage where this model keeps its buffer: on its device (storage_device) or in host memory
         assert self.replay_buffer_class is not None

@@ -3,6 +3,7 @@
 import inspect
 import os
 import pickle
+import re
 import shutil
 import socket
 from collections.abc import Callable
@@ -13,7 +14,7 @@ import numpy as np
 from rl_zoo3.exp_manager import ExperimentManager
 from rl_zoo3.utils import ALGOS, get_wrapper_class
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import EvalCallback
+from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecFrameStack, VecNormalize
 
 from sb3_maddpg.common.atomic import atomic_save
@@ -146,7 +147,10 @@ class MultiAgentExperimentManager(ExperimentManager):
         # RL Zoo creates the run folder before it builds the algorithm: a refused value must not leave it behind
         folder_existed = os.path.exists(self.save_path)
         try:
-            return super().setup_experiment()
+            result = super().setup_experiment()
+            if result is not None:
+                self._check_eval_env(result[0])
+            return result
         except (ValueError, TypeError) as error:
             if not folder_existed:
                 shutil.rmtree(self.save_path, ignore_errors=True)
@@ -155,18 +159,84 @@ class MultiAgentExperimentManager(ExperimentManager):
             # A hyperparameter value the algorithm refuses (e.g. cvar_alpha: 2.0): its own message, no traceback
             raise UsageError(f"{self.algo} on {self.env_name.gym_id}: {error}") from error
 
+    def create_log_folder(self) -> None:
+        # RL Zoo numbers the run folder in __init__ (the latest number + 1) and creates it with exist_ok=True, so runs
+        # started together on one log folder would share (and overwrite) one folder. Take the number with mkdir,
+        # which fails when another run has taken it, and move on to the next.
+        os.makedirs(self.log_path, exist_ok=True)
+        prefix = os.path.join(self.log_path, f"{self.env_name}_")
+        number, suffix = re.fullmatch(r"(\d+)(.*)", self.save_path[len(prefix) :]).groups()  # type: ignore[union-attr]
+        number = int(number)
+        while True:
+            try:
+                os.mkdir(self.save_path)
+                break
+            except FileExistsError:
+                number += 1
+                self.save_path = f"{prefix}{number}{suffix}"
+                self.params_path = f"{self.save_path}/{self.env_name}"
+        os.makedirs(self.params_path, exist_ok=True)
+
+    def _check_eval_env(self, model: BaseAlgorithm) -> None:
+        """
+        Refuse, before training, an evaluation env the model cannot act on (e.g. ``--eval-env-kwargs`` with another
+        number of agents or observation size), which would otherwise fail at the first evaluation.
+        """
+        for callback in self.callbacks:
+            if not isinstance(callback, EvalCallback):
+                continue
+            eval_env = callback.eval_env
+            found = (eval_env.observation_space, eval_env.action_space, getattr(eval_env, "n_agents", None))
+            expected = (model.observation_space, model.action_space, getattr(model, "n_agents", None))
+            if found != expected:
+                raise UsageError(
+                    f"--eval-env-kwargs: the evaluation env has {found[2]} agents, observations {found[0]} and actions "
+                    f"{found[1]}, but the model trains on {expected[2]} agents, observations {expected[0]} and actions "
+                    f"{expected[1]}; give the evaluation env the training env's team and spaces"
+                )
+
     def _load_pretrained_agent(self, hyperparams: dict[str, Any], env: VecEnv) -> BaseAlgorithm:
         # A resumed run keeps the saved action noise, whose schedule has advanced with the saved run (RL Zoo would pass
         # the YAML's, restarting the decay); the rest of the YAML entry applies as in RL Zoo.
         if "action_noise" in hyperparams:
             hyperparams = {key: value for key, value in hyperparams.items() if key != "action_noise"}
             print("Resuming: the saved action noise continues its schedule (the YAML's noise settings are not used)")
-        return super()._load_pretrained_agent(hyperparams, env)
+        # RL Zoo loads <folder>/replay_buffer.pkl beside any model it resumes, the final buffer into a checkpoint too;
+        # here only the buffer saved with that model: replay_buffer.pkl with the final model, and
+        # rl_model_replay_buffer_<N>_steps.pkl with the checkpoint rl_model_<N>_steps.zip.
+        folder, name = os.path.split(self.trained_agent)
+        checkpoint = re.fullmatch(r"(.*)_(\d+)_steps\.zip", name)
+        buffer = f"{checkpoint.group(1)}_replay_buffer_{checkpoint.group(2)}_steps.pkl" if checkpoint else "replay_buffer.pkl"
+        own = name == f"{self.env_name}.zip" or checkpoint is not None
+        buffer_path = os.path.join(folder, buffer)
+        print("Loading pretrained agent")
+        model = ALGOS[self.algo].load(
+            self.trained_agent,
+            env=env,
+            seed=self.seed,
+            tensorboard_log=self.tensorboard_log,
+            verbose=self.verbose,
+            device=self.device,
+            **{key: value for key, value in hyperparams.items() if key not in ("policy", "policy_kwargs")},
+        )
+        if own and os.path.exists(buffer_path):
+            print(f"Loading the replay buffer saved with this model: {buffer_path}")
+            model.load_replay_buffer(buffer_path, truncate_last_traj=self.truncate_last_trajectory)
+        elif os.path.exists(os.path.join(folder, "replay_buffer.pkl")):
+            print(f"Not loading {os.path.join(folder, 'replay_buffer.pkl')}: it was saved with the final model, not {name}")
+        return model
 
     def learn(self, model: BaseAlgorithm) -> None:
         # A resumed run (-i model.zip) continues the saved run's timestep counter (learning_starts, schedules,
         # TensorBoard's x-axis) and trains n_timesteps more, instead of starting again at 0.
-        super().learn(_ContinuedLearning(model) if self.continue_training else model)  # type: ignore[arg-type]
+        try:
+            super().learn(_ContinuedLearning(model) if self.continue_training else model)  # type: ignore[arg-type]
+        except (EOFError, ConnectionError) as error:
+            # An env worker process ended (killed, out of memory): stop as Ctrl-C does, and save what was learnt
+            print(
+                f"An env worker process ended ({type(error).__name__}: {error}): training stopped at timestep "
+                f"{model.num_timesteps}; the model is saved"
+            )
 
     def save_trained_model(self, model: BaseAlgorithm) -> None:
         # As RL Zoo's, with every file written atomically (MADDPG's own saves are; other algorithms' are made so here)
@@ -280,6 +350,10 @@ class MultiAgentExperimentManager(ExperimentManager):
             if not issubclass(ALGOS[self.algo], MultiAgentOffPolicyAlgorithm):
                 self.callbacks.append(EpisodeMetricsCallback())
             for callback in self.callbacks:
+                if isinstance(callback, CheckpointCallback):
+                    # --save-replay-buffer: each checkpoint with its buffer (rl_model_replay_buffer_<N>_steps.pkl),
+                    # so that a run stopped at a time limit resumes from the checkpoint with its experience
+                    callback.save_replay_buffer = self.save_replay_buffer
                 if isinstance(callback, EvalCallback):
                     # evaluate_policy asks for a Monitor; without one it counts each agent row's return, which is
                     # what it should report here (the mean return of an agent), so the warning is noise.

@@ -10,6 +10,8 @@ multi-agent versions of the last two; single-agent envs and algorithms keep work
 
 import functools
 import importlib
+import signal
+import threading
 from typing import Any
 
 _REGISTERED = False
@@ -72,10 +74,16 @@ def run_train(argv: list[str]) -> None:
 
     saved = sys.argv
     sys.argv = ["sb3_maddpg train", *argv]
+    # SIGTERM (what SLURM and most schedulers send at a time limit) stops training as Ctrl-C does: RL Zoo then saves
+    # the model (and, with --save-replay-buffer, the replay buffer) before the process ends.
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, signal.default_int_handler) if in_main_thread else None
     try:
         rl_zoo3.train.train()
     finally:
         sys.argv = saved
+        if in_main_thread:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
 def run_enjoy(argv: list[str]) -> None:

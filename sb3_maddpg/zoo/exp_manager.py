@@ -6,12 +6,16 @@ import pickle
 import re
 import shutil
 import socket
+import warnings
+from collections import OrderedDict
 from collections.abc import Callable
 from copy import deepcopy
 from typing import Any
 
 import numpy as np
+import optuna
 from rl_zoo3.exp_manager import ExperimentManager
+from rl_zoo3.hyperparams_opt import HYPERPARAMS_CONVERTER
 from rl_zoo3.utils import ALGOS, get_wrapper_class
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
@@ -22,7 +26,15 @@ from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
 from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
-from sb3_maddpg.zoo.storage import beyond_max_total_trials, create_shared_study, is_database_url
+from sb3_maddpg.zoo.storage import (
+    HEARTBEAT_GRACE_S,
+    HEARTBEAT_INTERVAL_S,
+    MAX_RETRY,
+    beyond_max_total_trials,
+    create_shared_study,
+    is_database_url,
+    mask_password,
+)
 
 # Keys of an RL Zoo YAML entry that RL Zoo consumes itself; every other key is an argument of the algorithm.
 ZOO_KEYS = frozenset(
@@ -110,6 +122,35 @@ def make_zoo_multiagent_vec_env(
     )
 
 
+class ZooRDBStorage(optuna.storages.RDBStorage):
+    """
+    Optuna's ``RDBStorage`` with the heartbeat of running trials: a trial whose worker died (killed, out of memory, a
+    node lost) stops beating, is failed after the grace period and its parameters are tried again
+    (``RetryHeartbeatStaleTrialCallback``), instead of staying RUNNING and counting towards ``--max-total-trials`` for ever.
+    RL Zoo's ``hyperparameters_optimization`` takes it where it expects a storage string (it only asks
+    ``storage.endswith(".log")``), and it is pickled without the URL's password (RL Zoo pickles the study, with its
+    storage, into ``report_*.pkl``).
+
+    :param url: a SQLAlchemy database URL
+    """
+
+    def __init__(self, url: str) -> None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)  # Optuna's heartbeat API
+            retry = optuna.storages.RetryHeartbeatStaleTrialCallback(max_retry=MAX_RETRY)
+        super().__init__(
+            url, heartbeat_interval=HEARTBEAT_INTERVAL_S, grace_period=HEARTBEAT_GRACE_S, heartbeat_stale_trial_callback=retry
+        )
+
+    def endswith(self, suffix: str) -> bool:
+        return False
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = super().__getstate__()
+        state["url"] = mask_password(state["url"])
+        return state
+
+
 class MultiAgentExperimentManager(ExperimentManager):
     """
     RL Zoo's experiment manager (train and Optuna search) for multi-agent envs registered with
@@ -134,14 +175,53 @@ class MultiAgentExperimentManager(ExperimentManager):
     def read_hyperparameters(self) -> tuple[dict[str, Any], dict[str, Any]]:
         if not os.path.isfile(self.config) and (self.config.endswith(".yml") or self.config.endswith(".yaml")):
             raise UsageError(f"config file {self.config} not found")
+        # RL Zoo applies --trial-id only when it is truthy (trial 0 was ignored) and ends in a traceback for a missing
+        # study or trial: the trial's parameters are read here, between the YAML entry's and -params'.
+        trial_id, self.trial_id = self.trial_id, None
         try:
             hyperparams, saved_hyperparams = super().read_hyperparameters()
         except ValueError as error:
             # "Hyperparameters not found for <algo>-<env> in <config>"
             raise UsageError(str(error)) from error
+        finally:
+            self.trial_id = trial_id
+        if trial_id is not None:
+            hyperparams = {**hyperparams, **self._trial_hyperparameters(trial_id), **(self.custom_hyperparams or {})}
+            saved_hyperparams = OrderedDict((key, hyperparams[key]) for key in sorted(hyperparams))
         where = f"the entry {self.env_name.gym_id!r} of {self.config} (or -params)"
         check_hyperparameter_keys(hyperparams, self.algo, where)
         return hyperparams, saved_hyperparams
+
+    def _trial_hyperparameters(self, trial_id: int) -> dict[str, Any]:
+        """The hyperparameters of trial ``trial_id`` of ``--study-name`` in ``--storage`` (``train --trial-id``)."""
+        if not self.storage or not self.study_name:
+            raise UsageError(f"--trial-id {trial_id} needs the study's --storage and --study-name")
+        where = f"the study {self.study_name!r} in {mask_password(self.storage)}"
+        storage: Any = self.storage
+        if storage.endswith(".log"):
+            storage = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(storage))
+        try:
+            study = optuna.load_study(storage=storage, study_name=self.study_name)
+        except KeyError as error:
+            raise UsageError(f"--study-name: there is no {where}") from error
+        numbers = [trial.number for trial in study.get_trials(deepcopy=False)]
+        if trial_id not in numbers:
+            shown = f"trials 0 to {max(numbers)}" if numbers else "no trials"
+            raise UsageError(f"--trial-id {trial_id}: {where} has {shown}")
+        params = study.trials[numbers.index(trial_id)].params
+        print(f"Loading the hyperparameters of trial {trial_id} of {where}")
+        return HYPERPARAMS_CONVERTER[self.algo](params)
+
+    def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
+        # The --storage password is not written into args.yml (command.txt gets the masked command line, see run_train)
+        storage = getattr(self.args, "storage", None)
+        if isinstance(storage, str):
+            self.args.storage = mask_password(storage)
+        try:
+            super()._save_config(saved_hyperparams)
+        finally:
+            if isinstance(storage, str):
+                self.args.storage = storage
 
     def setup_experiment(self) -> tuple[BaseAlgorithm, dict[str, Any]] | None:
         # RL Zoo creates the run folder before it builds the algorithm: a refused value must not leave it behind
@@ -298,8 +378,16 @@ class MultiAgentExperimentManager(ExperimentManager):
     def hyperparameters_optimization(self) -> None:
         # Workers started together on a database storage would race to create Optuna's tables and the study, and all
         # but one could crash; create (or load) the study here, safely, so that RL Zoo's create_study only loads it.
-        if is_database_url(self.storage):
-            create_shared_study(self.storage, self.study_name)
+        url = self.storage
+        if is_database_url(url):
+            create_shared_study(url, self.study_name)
+            # Opened once the tables exist (building an RDBStorage creates them: the race create_shared_study retries)
+            self.storage = ZooRDBStorage(url)  # type: ignore[assignment]
+            study = optuna.load_study(storage=self.storage, study_name=self.study_name)
+            # A dead worker's trial is failed (and retried) now, before RL Zoo counts the RUNNING trials
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+                optuna.storages.fail_stale_trials(study)
         self._worker_trials = []
         try:
             super().hyperparameters_optimization()
@@ -308,6 +396,8 @@ class MultiAgentExperimentManager(ExperimentManager):
             if "No trials are completed yet" not in str(error):
                 raise
             print(f"No trial of the study {self.study_name!r} has completed yet (all were pruned or failed): no best trial")
+        finally:
+            self.storage = url
         self._report_worker_trials()
 
     def _report_worker_trials(self) -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 import optuna
 import pytest
 import sqlalchemy
+from cli_testing import fails_with
 
 from sb3_maddpg.__main__ import main
 from sb3_maddpg.zoo import exp_manager, storage
@@ -19,15 +20,6 @@ TINY = ["--env", ENV, "-conf", CONFIG, "--env-kwargs", "obs_size:16", "max_cycle
 TINY += ["-params", "learning_starts:20", "train_freq:10", "policy_kwargs:dict(n_quantiles=4, net_arch=[16])"]
 PARAMS = {"one_minus_gamma": 0.05, "batch_size_pow": 4, "learning_rate": 1e-3, "tau": 0.01, "train_freq": 3}
 PARAMS |= {"cvar_alpha": 0.5}
-
-
-def _fails_with(argv: list[str], capsys: pytest.CaptureFixture) -> str:
-    with pytest.raises(SystemExit) as exit_info:
-        main(argv)
-    assert exit_info.value.code == 2
-    err = capsys.readouterr().err
-    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
-    return err
 
 
 def test_a_worker_losing_the_sqlite_table_race_retries(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -102,7 +94,7 @@ def test_a_missing_trial_or_study_is_one_line(extra: list[str], message: str, tm
     monkeypatch.chdir(tmp_path)
     url = f"sqlite:///{tmp_path / 'optuna.db'}"
     _study_with_trials(url)
-    err = _fails_with(["train", *TINY, "-n", "10", "--storage", url, *extra], capsys)
+    err = fails_with(["train", *TINY, "-n", "10", "--storage", url, *extra], capsys)
     assert message in err
 
 

@@ -63,6 +63,14 @@ def _describe_team(names: list[str]) -> str:
     return f"{len(names)} agent{'s' if len(names) != 1 else ''} ({shown})"
 
 
+def _first_non_finite(values: np.ndarray) -> str:
+    """The first NaN or infinite value of an array and its index, for messages."""
+    if values.ndim == 0:
+        return str(values)
+    index = np.unravel_index(int(np.flatnonzero(~np.isfinite(values))[0]), values.shape)
+    return f"{values[index]} at index {tuple(int(i) for i in index)}"
+
+
 def contains_callback(callback: BaseCallback, callback_class: type[BaseCallback]) -> bool:
     """Whether ``callback`` is, or holds in a (nested) ``CallbackList``, an instance of ``callback_class``."""
     if isinstance(callback, callback_class):
@@ -213,6 +221,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         self.agent_names: list[str] | None = None
         if self.env is not None:
             self._read_agents(self.env, n_agents)
+            self._check_action_noise(action_noise, self.env.num_envs)
 
     # ------------------------------------------------------------------------------------------------------------
     # The team
@@ -256,6 +265,29 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
             self.agent_names = names
         elif self.agent_names is None or len(self.agent_names) != self.n_agents:
             self.agent_names = default_agent_names(self.n_agents)
+
+    def _check_action_noise(self, action_noise: ActionNoise | None, n_rows: int) -> None:
+        """
+        Refuse a noise of another shape than the actions (NumPy would broadcast a 1-D noise silently, or fail at the
+        first step), or a ``VectorizedActionNoise`` for another number of VecEnv rows.
+        """
+        if action_noise is None:
+            return
+        action_shape = tuple(self.action_space.shape)  # type: ignore[arg-type]
+        if isinstance(action_noise, VectorizedActionNoise):
+            if action_noise.n_envs != n_rows:
+                raise ValueError(
+                    f"action_noise is a VectorizedActionNoise for {action_noise.n_envs} rows, but the VecEnv has {n_rows} "
+                    f"rows ({self.n_copies} copies x {self.n_agents} agents); give one noise of shape {action_shape} "
+                    "and it is applied to every row"
+                )
+            action_noise = action_noise.noises[0]
+        mean = getattr(action_noise, "_mu", None)
+        if mean is not None and np.shape(mean) != action_shape:
+            raise ValueError(
+                f"action_noise has shape {np.shape(mean)}, but each agent's action has shape {action_shape}: give a "
+                f"mean (and sigma) of shape {action_shape}"
+            )
 
     def check_team(self, names: list[str], where: str) -> None:
         """
@@ -306,6 +338,15 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         names = getattr(observation, "possible_agents", None)
         if names is not None:
             self.check_team(list(names), "the observations' VecEnv")
+        if isinstance(observation, np.ndarray):
+            expected = np.dtype(self.observation_space.dtype)
+            if expected.kind in "ui" and observation.dtype.kind == "f":
+                raise TypeError(
+                    f"predict: the observations are {observation.dtype}, but the model's observation space is {expected} "
+                    f"(images of 0-255, as the env gives them); pass the env's observations unchanged"
+                )
+            if observation.dtype.kind == "f" and not np.isfinite(observation).all():
+                raise ValueError(f"predict: the observations hold NaN or infinite values ({_first_non_finite(observation)})")
         return super().predict(observation, state, episode_start, deterministic)
 
     # ------------------------------------------------------------------------------------------------------------
@@ -376,15 +417,21 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
 
     def _make_replay_buffer(self) -> None:
         assert self.replay_buffer_class is not None
-        self.replay_buffer = self.replay_buffer_class(  # type: ignore[assignment]
-            self.buffer_size,
-            self.observation_space,
-            self.action_space,
-            device=self.device,
-            n_envs=self.n_envs,
-            optimize_memory_usage=self.optimize_memory_usage,
-            **self.replay_buffer_kwargs,
-        )
+        try:
+            self.replay_buffer = self.replay_buffer_class(  # type: ignore[assignment]
+                self.buffer_size,
+                self.observation_space,
+                self.action_space,
+                device=self.device,
+                n_envs=self.n_envs,
+                optimize_memory_usage=self.optimize_memory_usage,
+                **self.replay_buffer_kwargs,
+            )
+        except MemoryError as error:
+            raise ValueError(
+                f"buffer_size={self.buffer_size}: the replay buffer cannot be allocated on this machine ({error}); "
+                "use a smaller buffer_size"
+            ) from error
 
     # ------------------------------------------------------------------------------------------------------------
     # The rollout loop
@@ -496,6 +543,30 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
 
         return RolloutReturn(num_collected_steps * n_copies, num_collected_episodes, continue_training)
 
+    def _store_transition(
+        self,
+        replay_buffer: ReplayBuffer,
+        buffer_action: np.ndarray,
+        new_obs: np.ndarray | dict[str, np.ndarray],
+        reward: np.ndarray,
+        dones: np.ndarray,
+        infos: list[dict[str, Any]],
+    ) -> None:
+        # A NaN or infinite reward or observation makes every weight NaN within a few updates: refuse it where it
+        # enters the buffer, naming the agent and the timestep (SB3's VecCheckNan, for the data this loop stores)
+        for what, values in (("reward", reward), ("observation", new_obs)):
+            values = np.asarray(values)
+            if values.dtype.kind == "f" and not np.isfinite(values).all():
+                assert self.n_agents is not None and self.agent_names is not None
+                row = int(np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(axis=1))[0])
+                copy, agent = divmod(row, self.n_agents)
+                raise ValueError(
+                    f"the env returned a non-finite {what} ({_first_non_finite(values[row])}) for agent "
+                    f"{self.agent_names[agent]!r} of env copy {copy} at timestep {self.num_timesteps}: fix the env "
+                    "(SB3's VecCheckNan wrapper finds the step that produces it)"
+                )
+        super()._store_transition(replay_buffer, buffer_action, new_obs, reward, dones, infos)
+
     def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
         # As BaseAlgorithm._init_callback, with a progress bar that counts the team's timesteps, and the
         # environment's episode-end metrics (coverage, fairness, ...) logged in every run unless already asked for
@@ -556,6 +627,9 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param progress_bar: display a progress bar (in timesteps) using tqdm and rich
         :return: the trained model
         """
+        check_int("total_timesteps", total_timesteps, 1)
+        if log_interval is not None:
+            check_int("log_interval (None: no logging)", log_interval, 1)
         return super().learn(
             total_timesteps=total_timesteps,
             callback=callback,

@@ -92,6 +92,31 @@ def check_hyperparameter_keys(hyperparams: dict[str, Any], algo: str, where: str
         )
 
 
+def check_zoo_values(hyperparams: dict[str, Any], where: str, n_timesteps_given: bool = False) -> None:
+    """
+    Raise a :class:`UsageError` naming a YAML value RL Zoo would take without a word (``n_timesteps: 0`` trains
+    nothing) or fail on with an unrelated error (``n_envs: 0``: ZeroDivisionError; ``learning_rate: "fast"``: "not
+    enough values to unpack"). The algorithm checks its own arguments.
+
+    :param hyperparams: the YAML entry, possibly updated by ``-params``
+    :param where: where the entry comes from, for the message
+    :param n_timesteps_given: whether ``-n`` replaces the entry's ``n_timesteps``
+    """
+    n_timesteps = hyperparams.get("n_timesteps")
+    if not n_timesteps_given and n_timesteps is not None:
+        if isinstance(n_timesteps, bool) or not isinstance(n_timesteps, int | float) or not n_timesteps >= 1:
+            raise UsageError(f"n_timesteps must be a positive number of timesteps, got {n_timesteps!r} in {where}")
+    n_envs = hyperparams.get("n_envs", 1)
+    if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
+        raise UsageError(f"n_envs must be an integer >= 1 (environment copies), got {n_envs!r} in {where}")
+    learning_rate = hyperparams.get("learning_rate")
+    if isinstance(learning_rate, str) and not re.fullmatch(r"lin_(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?", learning_rate):
+        raise UsageError(
+            "learning_rate must be a number or 'lin_<initial value>' (RL Zoo's linear schedule, e.g. lin_0.001), "
+            f"got {learning_rate!r} in {where}"
+        )
+
+
 def make_zoo_multiagent_vec_env(
     env_id: str,
     n_envs: int,
@@ -190,6 +215,7 @@ class MultiAgentExperimentManager(ExperimentManager):
             saved_hyperparams = OrderedDict((key, hyperparams[key]) for key in sorted(hyperparams))
         where = f"the entry {self.env_name.gym_id!r} of {self.config} (or -params)"
         check_hyperparameter_keys(hyperparams, self.algo, where)
+        check_zoo_values(hyperparams, where, n_timesteps_given=self.n_timesteps > 0)
         return hyperparams, saved_hyperparams
 
     def _trial_hyperparameters(self, trial_id: int) -> dict[str, Any]:

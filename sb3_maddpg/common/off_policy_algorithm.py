@@ -679,13 +679,14 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
     ) -> SelfMultiAgentOffPolicyAlgorithm:
         """
         Load a model saved by ``save`` (as SB3's ``load``), after checking that the file is an intact model of this
-        library, and restore the random states saved with it (the generators continue where they were when it was
-        saved; call ``set_random_seed`` afterwards to reseed instead). With ``env``, the env must have the model's team.
+        library, without running code from it (see ``sb3_maddpg.common.model_files``), and restore the random states
+        saved with it (the generators continue where they were when it was saved; call ``set_random_seed`` afterwards
+        to reseed instead). With ``env``, the env must have the model's team.
 
         :param path: the model file (``.zip`` may be left out) or an open binary file
         :param env: the environment to act and learn on (None: only to predict)
         :param device: the device of the networks
-        :param custom_objects: objects to use instead of the saved ones (as in SB3)
+        :param custom_objects: objects to use instead of the saved ones (as in SB3), e.g. a learning rate saved as code
         :param print_system_info: print the system info of the saved model and of this one
         :param force_reset: reset the env before the next ``learn`` (as in SB3)
         :param kwargs: attributes to change while loading (as in SB3)

@@ -145,3 +145,15 @@ def test_a_models_config_comes_from_its_own_run_folder_only(tmp_path: Path) -> N
     (run / "aaa").mkdir()
     (run / "aaa" / "args.yml").write_text("env: uav_coverage_cpu_v1\nenv_kwargs: {n_uavs: 5}\n")
     assert find_run_config(run / "best_model.zip") == ("uav_coverage_fast_v0", {})
+
+
+def test_enjoy_refuses_a_run_yaml_that_would_run_code(tmp_path: Path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    env_id = "uav_coverage_fast_v0"
+    run = _run_folder(tmp_path / "logs" / "maddpg", env_id, f"!!python/object/apply:os.mkdir [{os.fspath(marker)!r}]\n")
+    _model(tmp_path).rename(run / f"{env_id}.zip")
+    with pytest.raises(SystemExit):
+        main(["enjoy", "--env", env_id, "-f", "logs", "--no-render", "-n", "5"])
+    assert "args.yml is not a run file of plain YAML values" in capsys.readouterr().err
+    assert not marker.exists()

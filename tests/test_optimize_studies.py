@@ -86,7 +86,10 @@ def test_train_trial_id_0_loads_trial_0(tmp_path: Path, monkeypatch: pytest.Monk
     ("extra", "message"),
     [
         (["--study-name", "tuned", "--trial-id", "7"], "--trial-id 7: the study 'tuned' in sqlite:///"),
-        (["--study-name", "no_such_study", "--trial-id", "0"], "--study-name: there is no the study 'no_such_study'"),
+        (
+            ["--study-name", "no_such_study", "--trial-id", "0"],
+            "--study-name: there is no study 'no_such_study' in sqlite:///",
+        ),
     ],
     ids=["missing-trial", "missing-study"],
 )

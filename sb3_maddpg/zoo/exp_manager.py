@@ -222,7 +222,7 @@ class MultiAgentExperimentManager(ExperimentManager):
         """The hyperparameters of trial ``trial_id`` of ``--study-name`` in ``--storage`` (``train --trial-id``)."""
         if not self.storage or not self.study_name:
             raise UsageError(f"--trial-id {trial_id} needs the study's --storage and --study-name")
-        where = f"the study {self.study_name!r} in {mask_password(self.storage)}"
+        where = f"study {self.study_name!r} in {mask_password(self.storage)}"
         storage: Any = self.storage
         if storage.endswith(".log"):
             storage = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(storage))
@@ -233,7 +233,7 @@ class MultiAgentExperimentManager(ExperimentManager):
         numbers = [trial.number for trial in study.get_trials(deepcopy=False)]
         if trial_id not in numbers:
             shown = f"trials 0 to {max(numbers)}" if numbers else "no trials"
-            raise UsageError(f"--trial-id {trial_id}: {where} has {shown}")
+            raise UsageError(f"--trial-id {trial_id}: the {where} has {shown}")
         params = study.trials[numbers.index(trial_id)].params
         print(f"Loading the hyperparameters of trial {trial_id} of {where}")
         return HYPERPARAMS_CONVERTER[self.algo](params)

@@ -45,6 +45,19 @@ def test_runs_started_together_on_one_log_folder_get_one_folder_each(tmp_path: P
     assert all((tmp_path / "logs" / "maddpg" / run / f"{ENV}.zip").is_file() for run in runs)
 
 
+def test_three_processes_started_together_make_three_run_folders(tmp_path: Path) -> None:
+    command = [sys.executable, "-m", "sb3_maddpg", "train", *TINY, "-n", "20"]
+    pipes = {"stdout": subprocess.PIPE, "stderr": subprocess.STDOUT, "text": True}
+    runs = [subprocess.Popen(command, cwd=tmp_path, **pipes) for _ in range(3)]
+    outputs = [run.communicate(timeout=300)[0] for run in runs]
+    assert [run.returncode for run in runs] == [0, 0, 0], outputs
+    folders = sorted((tmp_path / "logs" / "maddpg").glob(f"{ENV}_*"))
+    assert len(folders) == 3 and all((folder / f"{ENV}.zip").is_file() for folder in folders), outputs
+    for folder in folders:
+        lines = (folder / "monitor.csv").read_text().splitlines()
+        assert len(lines) == 2 + 2  # header lines, then this run's own two 10-step episodes
+
+
 def test_sigterm_saves_the_model_and_replay_buffer_as_ctrl_c_does(tmp_path: Path) -> None:
     command = [sys.executable, "-m", "sb3_maddpg", "train", *TINY, "-n", "1000000", "--save-replay-buffer"]
     process = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

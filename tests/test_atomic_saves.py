@@ -138,3 +138,23 @@ def test_writable_folder_check(tmp_path: Path) -> None:
         check_writable_folder(tmp_path / "file" / "out", "--out")
     with pytest.raises(ValueError, match="exists and is not a folder"):
         check_writable_folder(tmp_path / "file", "--out")
+
+
+@pytest.mark.parametrize("save", ["model", "replay_buffer"])
+def test_a_save_keeps_the_files_mode_and_writes_through_a_symlink(save: str, tmp_path: Path) -> None:
+    from maddpg_test_envs import TargetReachEnv
+
+    from sb3_maddpg import make_multiagent_vec_env
+
+    model = MADDPG("MlpPolicy", make_multiagent_vec_env(lambda **kwargs: TargetReachEnv(), n_envs=1), buffer_size=20)
+    write = model.save if save == "model" else model.save_replay_buffer
+    target = tmp_path / ("model.zip" if save == "model" else "buffer.pkl")
+    write(target)
+    target.chmod(0o600)
+    write(target)
+    assert target.stat().st_mode & 0o777 == 0o600  # not the umask's 644: the file stays private
+    link = tmp_path / f"latest{target.suffix}"
+    link.symlink_to(target.name)
+    write(link)
+    assert link.is_symlink() and os.readlink(link) == target.name  # the link stays; its target is written
+    assert target.stat().st_mode & 0o777 == 0o600

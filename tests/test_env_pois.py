@@ -48,13 +48,25 @@ def test_image_png_to_pois(tmp_path):
 
 
 def test_image_area_averaging_with_uneven_size():
-    # 3 x 3 image -> 2 x 2 cells: input pixel j spans [2j/3, 2(j+1)/3). Cell column 1 = [1, 2) overlaps pixel 1 by
-    # 1/3 and pixel 2 by 2/3: mean = (1/3 * 0 + 2/3 * 90) = 60; cell column 0 = 0.
-    image = np.array([[0, 0, 90]] * 3, dtype=float)
-    core = UAVCoverageCore(map_size=2, n_uavs=1, pois=image, obs_size=2)  # 60 > 0.1 * 90
-    assert sorted(core.pois.tolist()) == [[1.5, 0.5], [1.5, 1.5]]
+    # 6 x 6 image -> 4 x 4 cells: input pixel j spans [2j/3, 2(j+1)/3). Cell column 3 = [3, 4) overlaps pixel 4 by
+    # 1/3 and pixel 5 by 2/3: mean = (1/3 * 0 + 2/3 * 90) = 60; the other cell columns are 0.
+    image = np.array([[0, 0, 0, 0, 0, 90]] * 6, dtype=float)
+    core = UAVCoverageCore(map_size=4, n_uavs=1, pois=image, obs_size=4)  # 60 > 0.1 * 90
+    assert sorted(core.pois.tolist()) == [[3.5, 0.5], [3.5, 1.5], [3.5, 2.5], [3.5, 3.5]]
     with pytest.raises(ValueError, match="no cell"):
-        UAVCoverageCore(map_size=2, n_uavs=1, pois=image, poi_threshold=0.7, obs_size=2)  # 60 < 0.7 * 90 = 63
+        UAVCoverageCore(map_size=4, n_uavs=1, pois=image, poi_threshold=0.7, obs_size=4)  # 60 < 0.7 * 90 = 63
+
+
+@pytest.mark.parametrize("shape", [(5, 3), (3, 5), (2, 3), (3, 3)])
+def test_an_ambiguous_array_is_refused_not_guessed(shape):
+    # (5, 3) could be five (x, y, weight) PoIs; a 3-pixel-wide "image" would be read as a few cells of a table
+    with pytest.raises(ValueError, match=rf"got shape \({shape[0]}, {shape[1]}\); weighted PoIs"):
+        UAVCoverageCore(map_size=16, n_uavs=1, pois=np.ones(shape), obs_size=16)
+
+
+def test_two_columns_are_coordinates_and_a_4_by_4_array_is_an_image():
+    assert UAVCoverageCore(map_size=4, n_uavs=1, pois=np.ones((2, 2)), obs_size=4).pois.tolist() == [[1, 1], [1, 1]]
+    assert len(UAVCoverageCore(map_size=4, n_uavs=1, pois=np.ones((4, 4)), obs_size=4).pois) == 16
 
 
 def test_image_errors(tmp_path):

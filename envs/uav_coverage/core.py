@@ -39,6 +39,9 @@ __all__ = [
     "pois_from_image",
 ]
 
+# The smallest side of a PoI image array: narrower arrays (a (K, 3) table, a 2 x 2 "image") are ambiguous
+MIN_POI_IMAGE_SIDE = 4
+
 
 class UAVCoverageCore:
     """
@@ -47,7 +50,8 @@ class UAVCoverageCore:
     :param map_size: L, the area is [0, L)^2 in cell units
     :param n_uavs: N, number of UAVs
     :param pois: ``"grid"`` (the L x L integer lattice), ``"uniform"`` (``n_pois`` points drawn from the seed),
-        an array (K, 2) of coordinates, or a grayscale image (path to a PNG/JPEG, or a 2-D array)
+        an array (K, 2) of coordinates, or a grayscale image (path to a PNG/JPEG, or a 2-D array of at least 4 x 4
+        pixels; other 2-D arrays are refused as ambiguous)
     :param n_pois: number of PoIs for ``pois="uniform"`` (default L^2); only used there
     :param poi_threshold: for image PoIs, a cell holds a PoI when its mean intensity exceeds this fraction of the
         image's maximum intensity
@@ -184,15 +188,19 @@ class UAVCoverageCore:
                 raise ValueError(
                     f"pois must be 'grid', 'uniform', an array (K, 2), an image path or a 2-D image array, got {pois!r}"
                 ) from error
+            # The rule: 2 columns are (x, y) coordinates; an image has at least MIN_POI_IMAGE_SIDE pixels on each side.
+            # A (K, 3) array (x, y, weight?) or a tiny image is neither: refused rather than guessed.
             if array.ndim == 2 and array.shape[1] == 2:
                 self.pois_mode = "array"
                 self._set_pois(check_points("pois", array, None, self.map_size))
-            elif array.ndim == 2:
+            elif array.ndim == 2 and min(array.shape) >= MIN_POI_IMAGE_SIDE:
                 self.pois_mode = "image"
                 self._set_pois(pois_from_image(array, self.map_size, self.poi_threshold, "pois image array"))
             else:
                 raise ValueError(
-                    f"pois: an array must have shape (K, 2) (coordinates) or (H, W) (grayscale image), got shape {array.shape}"
+                    f"pois: an array must have shape (K, 2) (x, y coordinates) or (H, W) with H, W >= "
+                    f"{MIN_POI_IMAGE_SIDE} (a grayscale image), got shape {array.shape}; weighted PoIs (x, y, weight) "
+                    "are not supported"
                 )
         if n_pois is not None and self.pois_mode != "uniform":
             raise ValueError(f"n_pois is only used with pois='uniform', got n_pois={n_pois!r} with pois={self.pois_mode!r}")

@@ -10,6 +10,7 @@ exception, Ctrl-C or ``SIGKILL`` leaves the previous file untouched; after a ``S
 import os
 import pathlib
 import secrets
+import stat
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from typing import IO, Any
@@ -40,16 +41,21 @@ def atomic_path(path: str | os.PathLike) -> Iterator[pathlib.Path]:
     (``KeyboardInterrupt`` included) it is removed and ``path`` keeps its previous content. The temporary name keeps
     the suffix of ``path``, so writers that choose the format from the suffix choose the same one.
 
+    The file keeps what ``os.replace`` would otherwise change: an existing file's permission bits (a ``chmod 600``
+    model stays private), and a symbolic link (``latest.zip``) stays a link: its target is written.
+
     :param path: the final file; its folder must exist
     :return: the temporary path to write
     """
-    path = os.path.abspath(os.fspath(path))
+    path = os.path.realpath(os.fspath(path))  # through symbolic links, to the file they name
     folder, name = os.path.split(path)
     stem, suffix = os.path.splitext(name)
     temporary = os.path.join(folder, f".{stem}.{os.getpid()}.{secrets.token_hex(4)}.tmp{suffix}")
     try:
         yield pathlib.Path(temporary)
         _fsync_file(temporary)
+        with suppress(FileNotFoundError):
+            os.chmod(temporary, stat.S_IMODE(os.stat(path).st_mode))
         os.replace(temporary, path)
     except BaseException:
         with suppress(OSError):

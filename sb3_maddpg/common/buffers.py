@@ -20,6 +20,24 @@ except ImportError:  # pragma: no cover
 
 SelfBuffer = TypeVar("SelfBuffer", bound="MultiAgentReplayBuffer")
 
+
+def available_host_memory() -> int | None:
+    """
+    :return: the host memory available to a new allocation, in bytes: psutil's (as SB3 reads it) or, without psutil
+        (not a dependency), Linux's ``MemAvailable``; None where neither can be read
+    """
+    if psutil is not None:
+        return int(psutil.virtual_memory().available)
+    try:
+        with open("/proc/meminfo") as file:
+            for line in file:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
 # The stored arrays (the storage); the device buffer keeps them as tensors
 STORED = ("observations", "actions", "rewards", "dones", "timeouts", "next_obs_index", "_aux")
 
@@ -181,8 +199,8 @@ class MultiAgentReplayBuffer(ReplayBuffer):
             available = th.cuda.mem_get_info(self.storage_device)[0]
             message = f"The replay buffer storage needs {total / 1e9:.2f}GB but there is {available / 1e9:.2f}GB"
             message += f" free memory on {self.storage_device}"
-        elif self.storage_device.type == "cpu" and psutil is not None:
-            available = psutil.virtual_memory().available
+        elif self.storage_device.type == "cpu" and (host := available_host_memory()) is not None:
+            available = host
             message = "This system does not have apparently enough memory to store the complete "
             message += f"replay buffer {total / 1e9:.2f}GB > {available / 1e9:.2f}GB"
         else:

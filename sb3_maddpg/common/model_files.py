@@ -1,14 +1,29 @@
-"""Checks of a saved model file before SB3 loads it: a clear message for a file that is not a MADDPG model or is damaged."""
+"""
+Checks of a saved model file before SB3 loads it: a clear message for a file that is not a MADDPG model or is damaged;
+and the reading of its pickled parts without running code.
 
+SB3 saves the class parameters it cannot write as JSON (spaces, noise, schedules, classes) as cloudpickle strings inside
+the zip's JSON ``data`` member, and a replay buffer as a pickle file: unpickling either can run any code the file
+names. Here they are unpickled only after the file is recognised as a MADDPG model, and only with
+:func:`restricted_loads`, which builds the classes and functions a model of this library is made of (NumPy arrays and
+generators, Gymnasium spaces, torch tensors and devices, SB3's and this library's noises, schedules, buffers, policies
+and layers) and refuses every other reference with a ``ValueError``. A function saved by value (a ``lambda`` learning
+rate) is code, so it is refused too: pass it again with ``custom_objects`` (SB3's way to replace saved objects).
+"""
+
+import base64
 import io
 import json
 import os
 import pathlib
+import pickle
+import pickletools
 import zipfile
 import zlib
 from typing import Any
 
-from stable_baselines3.common.save_util import json_to_data
+# Class parameters rebuilt from others by ``_setup_model``: when saved as code, they are not needed
+DERIVED_KEYS = frozenset({"lr_schedule", "actor_lr_schedule"})
 
 # Class parameters every saved MADDPG model has and no SB3 algorithm saves
 MADDPG_KEYS = ("n_agents", "cvar_alpha")
@@ -33,25 +48,168 @@ def resolve_model_path(path: str | os.PathLike) -> pathlib.Path:
     return target
 
 
+# The functions a model or replay buffer pickle calls to rebuild arrays, generators and tensors
+_FUNCTIONS = {
+    ("numpy._core.numeric", "_frombuffer"),
+    ("numpy.core.numeric", "_frombuffer"),
+    ("numpy._core.multiarray", "_reconstruct"),
+    ("numpy.core.multiarray", "_reconstruct"),
+    ("numpy._core.multiarray", "scalar"),
+    ("numpy.core.multiarray", "scalar"),
+    ("numpy.random._pickle", "__generator_ctor"),
+    ("numpy.random._pickle", "__bit_generator_ctor"),
+    ("numpy.random._pickle", "__randomstate_ctor"),
+    ("numpy.random.bit_generator", "__pyx_unpickle_SeedSequence"),
+    ("torch._utils", "_rebuild_tensor_v2"),
+    ("torch._utils", "_rebuild_parameter"),
+    ("copyreg", "_reconstructor"),
+    ("collections", "deque"),
+    ("collections", "OrderedDict"),
+}
+_BUILTINS = frozenset({"object", "dict", "list", "tuple", "set", "frozenset", "int", "float", "complex", "bool", "str"})
+# Packages (and gymnasium.spaces) whose classes may be built, and only classes derived from those of _allowed_bases
+# (a logger or a VecEnv class of the same packages opens files or starts processes when built)
+_CLASS_MODULES = ("numpy", "stable_baselines3", "sb3_maddpg", "sb3_contrib", "rl_zoo3", "torch")
+
+
+def _allowed_bases() -> tuple[type, ...]:
+    import numpy as np
+    import torch as th
+    from gymnasium.spaces import Space
+    from stable_baselines3.common.buffers import ReplayBuffer
+    from stable_baselines3.common.noise import ActionNoise
+    from stable_baselines3.common.type_aliases import TrainFreq, TrainFrequencyUnit
+    from stable_baselines3.common.utils import ConstantSchedule, FloatSchedule, LinearSchedule
+
+    schedules: tuple[type, ...] = (ConstantSchedule, FloatSchedule, LinearSchedule)
+    try:
+        from rl_zoo3.utils import SimpleLinearSchedule
+
+        schedules += (SimpleLinearSchedule,)
+    except ImportError:
+        pass
+    generators = (np.random.BitGenerator, np.random.SeedSequence, np.random.Generator, np.random.RandomState)
+    return (
+        *schedules,
+        *generators,
+        np.generic,
+        np.dtype,
+        Space,
+        ReplayBuffer,
+        ActionNoise,
+        TrainFreq,
+        TrainFrequencyUnit,
+        th.nn.Module,
+        th.optim.Optimizer,
+        th.device,
+        th.Size,
+    )
+
+
+def _load_storage(data: bytes) -> Any:
+    """torch's ``storage._load_from_bytes`` (a tensor's storage inside a pickle), with torch's safe ``weights_only``."""
+    import torch as th
+
+    return th.load(io.BytesIO(data), weights_only=True)
+
+
+class _RestrictedUnpickler(pickle.Unpickler):
+    """An unpickler that builds only what a model of this library is made of (see the module's docstring)."""
+
+    def find_class(self, module: str, name: str) -> Any:
+        if (module, name) == ("torch.storage", "_load_from_bytes"):
+            return _load_storage
+        if (module, name) in _FUNCTIONS or (module == "builtins" and name in _BUILTINS):
+            return super().find_class(module, name)
+        if module.split(".")[0] in _CLASS_MODULES or module.startswith("gymnasium.spaces"):
+            import numpy as np
+            import torch as th
+
+            value = super().find_class(module, name)
+            if isinstance(value, th.dtype) or value is np.ndarray:
+                return value
+            if isinstance(value, type) and issubclass(value, _allowed_bases()):
+                return value
+        raise pickle.UnpicklingError(f"it refers to {module}.{name}, which is not part of a model of this library")
+
+
+def restricted_loads(data: bytes) -> Any:
+    """
+    Unpickle ``data`` building only what a model or replay buffer of this library is made of.
+
+    :param data: a pickle (or cloudpickle) string
+    :return: the object
+    :raises pickle.UnpicklingError: naming the first reference that is refused
+    """
+    return _RestrictedUnpickler(io.BytesIO(data)).load()
+
+
+def read_class_parameters(
+    raw: dict[str, Any], keys: tuple[str, ...] | None, name: str, custom_objects: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """
+    SB3's ``json_to_data`` with :func:`restricted_loads` in place of ``cloudpickle.loads``.
+
+    :param raw: the JSON of the zip's ``data`` member
+    :param keys: the parameters to read (None: all)
+    :param name: the file, for messages
+    :param custom_objects: parameters given instead of the saved ones (not read)
+    :return: the parameters
+    :raises ValueError: naming the parameter and what it refers to
+    """
+    custom_objects = custom_objects or {}
+    data: dict[str, Any] = {}
+    for key, item in raw.items():
+        if keys is not None and key not in keys:
+            continue
+        if key in custom_objects:
+            data[key] = custom_objects[key]
+        elif isinstance(item, dict) and ":serialized:" in item:
+            try:
+                data[key] = restricted_loads(base64.b64decode(item[":serialized:"].encode()))
+            except pickle.UnpicklingError as error:
+                if key in DERIVED_KEYS:
+                    data[key] = None  # rebuilt from learning_rate by _setup_model
+                    continue
+                raise ValueError(
+                    f"{name}: the saved {key!r} cannot be read safely: {error}; if you trust the file, pass the object "
+                    f"with custom_objects={{{key!r}: ...}}"
+                ) from error
+            except Exception as error:
+                raise ValueError(f"{name} is damaged: its {key!r} cannot be read ({error})") from error
+        else:
+            data[key] = item
+    return data
+
+
 def _saved_by(raw: dict[str, Any]) -> str:
-    """What saved a zip whose data lacks MADDPG's parameters, as far as its data tells."""
-    if "policy_class" not in raw:
+    """What saved a zip whose data lacks MADDPG's parameters, as far as its JSON tells (nothing is unpickled)."""
+    policy_class = raw.get("policy_class")
+    if not isinstance(policy_class, dict):
         return "something else than SB3 (its data has no policy_class)"
     try:
-        policy_class = json_to_data(json.dumps({"policy_class": raw["policy_class"]}))["policy_class"]
-        name = f"{policy_class.__module__}.{policy_class.__qualname__}"
+        # A class saved by reference is a pickle of two strings (its module and name): read them, run nothing
+        ops = pickletools.genops(base64.b64decode(policy_class[":serialized:"].encode()))
+        strings = [arg for op, arg, _ in ops if op.name in ("SHORT_BINUNICODE", "BINUNICODE", "UNICODE")]
+        name = f"{strings[0]}.{strings[1]}"
     except Exception:
         name = "a policy class that cannot be read here"
     return f"another algorithm (its policy is {name})"
 
 
-def read_maddpg_data(source: str | os.PathLike | io.BufferedIOBase, keys: tuple[str, ...] = ()) -> dict[str, Any]:
+def read_maddpg_data(
+    source: str | os.PathLike | io.BufferedIOBase,
+    keys: tuple[str, ...] | None = (),
+    custom_objects: dict[str, Any] | None = None,
+) -> dict[str, Any]:
     """
-    Check that a saved model is an intact MADDPG zip and read some of its class parameters, without loading weights.
+    Check that a saved model is an intact MADDPG zip and read some of its class parameters, without loading weights
+    and without running code (see :func:`read_class_parameters`).
 
     :param source: the model file (``.zip`` may be left out, as with SB3's ``load``) or an open binary file (read from
         its current position, then put back there)
-    :param keys: class parameters to deserialise and return (e.g. ``("n_agents", "observation_space")``)
+    :param keys: class parameters to deserialise and return (e.g. ``("n_agents", "observation_space")``; None: all)
+    :param custom_objects: parameters given instead of the saved ones
     :return: those parameters
     :raises ValueError: one line saying that the file is not a MADDPG model, or is damaged, and which
     """
@@ -85,10 +243,7 @@ def read_maddpg_data(source: str | os.PathLike | io.BufferedIOBase, keys: tuple[
         if not isinstance(raw, dict) or any(key not in raw for key in MADDPG_KEYS):
             saved_by = _saved_by(raw if isinstance(raw, dict) else {})
             raise ValueError(f"{name} is not a MADDPG model: it was saved by {saved_by}")
-        try:
-            return json_to_data(json.dumps({key: raw[key] for key in keys if key in raw}))
-        except Exception as error:
-            raise ValueError(f"{name} is damaged: its {', '.join(keys)} cannot be read ({error})") from error
+        return read_class_parameters(raw, keys, name, custom_objects)
     finally:
         if opened is not source:
             opened.close()

@@ -36,7 +36,7 @@ from stable_baselines3.common.noise import ActionNoise, VectorizedActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.preprocessing import get_action_dim
-from stable_baselines3.common.save_util import load_from_pkl
+from stable_baselines3.common.save_util import open_path
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
 from stable_baselines3.common.utils import should_collect_more_steps
 from stable_baselines3.common.vec_env import VecEnv
@@ -46,7 +46,7 @@ from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.common.device_buffer import DeviceReplayBuffer, resolve_storage_device
 from sb3_maddpg.common.evaluation import evaluate_joint_episodes
-from sb3_maddpg.common.model_files import READ_ERRORS, read_maddpg_data
+from sb3_maddpg.common.model_files import READ_ERRORS, read_maddpg_data, restricted_loads
 from sb3_maddpg.common.noise import DecayingGaussianNoise, RowBatchedActionNoise, set_noise_timestep
 from sb3_maddpg.common.random_state import capture_random_states, restore_random_states
 from sb3_maddpg.common.validation import check_int, check_off_policy_arguments
@@ -63,6 +63,14 @@ def default_agent_names(n_agents: int) -> list[str]:
 def _describe_team(names: list[str]) -> str:
     shown = ", ".join(names) if len(names) <= 8 else f"{', '.join(names[:3])}, ..., {names[-1]}"
     return f"{len(names)} agent{'s' if len(names) != 1 else ''} ({shown})"
+
+
+def _first_non_finite(values: np.ndarray) -> str:
+    """The first NaN or infinite value of an array and its index, for messages."""
+    if values.ndim == 0:
+        return str(values)
+    index = np.unravel_index(int(np.flatnonzero(~np.isfinite(values))[0]), values.shape)
+    return f"{values[index]} at index {tuple(int(i) for i in index)}"
 
 
 def contains_callback(callback: BaseCallback, callback_class: type[BaseCallback]) -> bool:
@@ -227,6 +235,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         self.agent_names: list[str] | None = None
         if self.env is not None:
             self._read_agents(self.env, n_agents)
+            self._check_action_noise(action_noise, self.env.num_envs)
 
     # ------------------------------------------------------------------------------------------------------------
     # The team
@@ -270,6 +279,29 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
             self.agent_names = names
         elif self.agent_names is None or len(self.agent_names) != self.n_agents:
             self.agent_names = default_agent_names(self.n_agents)
+
+    def _check_action_noise(self, action_noise: ActionNoise | None, n_rows: int) -> None:
+        """
+        Refuse a noise of another shape than the actions (NumPy would broadcast a 1-D noise silently, or fail at the
+        first step), or a ``VectorizedActionNoise`` for another number of VecEnv rows.
+        """
+        if action_noise is None:
+            return
+        action_shape = tuple(self.action_space.shape)  # type: ignore[arg-type]
+        if isinstance(action_noise, VectorizedActionNoise):
+            if action_noise.n_envs != n_rows:
+                raise ValueError(
+                    f"action_noise is a VectorizedActionNoise for {action_noise.n_envs} rows, but the VecEnv has {n_rows} "
+                    f"rows ({self.n_copies} copies x {self.n_agents} agents); give one noise of shape {action_shape} "
+                    "and it is applied to every row"
+                )
+            action_noise = action_noise.noises[0]
+        mean = getattr(action_noise, "_mu", None)
+        if mean is not None and np.shape(mean) != action_shape:
+            raise ValueError(
+                f"action_noise has shape {np.shape(mean)}, but each agent's action has shape {action_shape}: give a "
+                f"mean (and sigma) of shape {action_shape}"
+            )
 
     def check_team(self, names: list[str], where: str) -> None:
         """
@@ -327,6 +359,15 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         names = getattr(observation, "possible_agents", None)
         if names is not None:
             self.check_team(list(names), "the observations' VecEnv")
+        if isinstance(observation, np.ndarray):
+            expected = np.dtype(self.observation_space.dtype)
+            if expected.kind in "ui" and observation.dtype.kind == "f":
+                raise TypeError(
+                    f"predict: the observations are {observation.dtype}, but the model's observation space is {expected} "
+                    f"(images of 0-255, as the env gives them); pass the env's observations unchanged"
+                )
+            if observation.dtype.kind == "f" and not np.isfinite(observation).all():
+                raise ValueError(f"predict: the observations hold NaN or infinite values ({_first_non_finite(observation)})")
         return super().predict(observation, state, episode_start, deterministic)
 
     # ------------------------------------------------------------------------------------------------------------
@@ -397,15 +438,21 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
 
     def _make_replay_buffer(self) -> None:
         assert self.replay_buffer_class is not None
-        self.replay_buffer = self.replay_buffer_class(  # type: ignore[assignment]
-            self.buffer_size,
-            self.observation_space,
-            self.action_space,
-            device=self.device,
-            n_envs=self.n_envs,
-            optimize_memory_usage=self.optimize_memory_usage,
-            **self.replay_buffer_kwargs,
-        )
+        try:
+            self.replay_buffer = self.replay_buffer_class(  # type: ignore[assignment]
+                self.buffer_size,
+                self.observation_space,
+                self.action_space,
+                device=self.device,
+                n_envs=self.n_envs,
+                optimize_memory_usage=self.optimize_memory_usage,
+                **self.replay_buffer_kwargs,
+            )
+        except MemoryError as error:
+            raise ValueError(
+                f"buffer_size={self.buffer_size}: the replay buffer cannot be allocated on this machine ({error}); "
+                "use a smaller buffer_size"
+            ) from error
 
     # ------------------------------------------------------------------------------------------------------------
     # The rollout loop
@@ -517,6 +564,30 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
 
         return RolloutReturn(num_collected_steps * n_copies, num_collected_episodes, continue_training)
 
+    def _store_transition(
+        self,
+        replay_buffer: ReplayBuffer,
+        buffer_action: np.ndarray,
+        new_obs: np.ndarray | dict[str, np.ndarray],
+        reward: np.ndarray,
+        dones: np.ndarray,
+        infos: list[dict[str, Any]],
+    ) -> None:
+        # A NaN or infinite reward or observation makes every weight NaN within a few updates: refuse it where it
+        # enters the buffer, naming the agent and the timestep (SB3's VecCheckNan, for the data this loop stores)
+        for what, values in (("reward", reward), ("observation", new_obs)):
+            values = np.asarray(values)
+            if values.dtype.kind == "f" and not np.isfinite(values).all():
+                assert self.n_agents is not None and self.agent_names is not None
+                row = int(np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(axis=1))[0])
+                copy, agent = divmod(row, self.n_agents)
+                raise ValueError(
+                    f"the env returned a non-finite {what} ({_first_non_finite(values[row])}) for agent "
+                    f"{self.agent_names[agent]!r} of env copy {copy} at timestep {self.num_timesteps}: fix the env "
+                    "(SB3's VecCheckNan wrapper finds the step that produces it)"
+                )
+        super()._store_transition(replay_buffer, buffer_action, new_obs, reward, dones, infos)
+
     def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
         # As BaseAlgorithm._init_callback, with a progress bar that counts the team's timesteps, and the
         # environment's episode-end metrics (coverage, fairness, ...) logged in every run unless already asked for
@@ -580,6 +651,9 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         :param progress_bar: display a progress bar (in timesteps) using tqdm and rich
         :return: the trained model
         """
+        check_int("total_timesteps", total_timesteps, 1)
+        if log_interval is not None:
+            check_int("log_interval (None: no logging)", log_interval, 1)
         return super().learn(
             total_timesteps=total_timesteps,
             callback=callback,
@@ -629,20 +703,24 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
     ) -> SelfMultiAgentOffPolicyAlgorithm:
         """
         Load a model saved by ``save`` (as SB3's ``load``), after checking that the file is an intact model of this
-        library, and restore the random states saved with it (the generators continue where they were when it was
-        saved; call ``set_random_seed`` afterwards to reseed instead). With ``env``, the env must have the model's team.
+        library, without running code from it (see ``sb3_maddpg.common.model_files``), and restore the random states
+        saved with it (the generators continue where they were when it was saved; call ``set_random_seed`` afterwards
+        to reseed instead). With ``env``, the env must have the model's team.
 
         :param path: the model file (``.zip`` may be left out) or an open binary file
         :param env: the environment to act and learn on (None: only to predict)
         :param device: the device of the networks
-        :param custom_objects: objects to use instead of the saved ones (as in SB3)
+        :param custom_objects: objects to use instead of the saved ones (as in SB3), e.g. a learning rate saved as code
         :param print_system_info: print the system info of the saved model and of this one
         :param force_reset: reset the env before the next ``learn`` (as in SB3)
         :param kwargs: attributes to change while loading (as in SB3)
         :return: the model
         :raises ValueError: if the file is not a model of this library or is damaged, or the env's team is not the model's
         """
-        read_maddpg_data(path)  # type: ignore[arg-type]
+        # Every pickled class parameter is read here, without running code (model_files.restricted_loads), and handed
+        # to SB3 as custom_objects, so that SB3's load unpickles none; those that ``kwargs`` replace are not read.
+        given = {**{key: value for key, value in kwargs.items() if key != "policy_kwargs"}, **(custom_objects or {})}
+        custom_objects = read_maddpg_data(path, None, given)  # type: ignore[arg-type]
         try:
             model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
         except READ_ERRORS as error:
@@ -676,7 +754,9 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         """
         name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the replay buffer file"
         try:
-            buffer = load_from_pkl(path, self.verbose)
+            # A pickle file: read without running code (only what a replay buffer of this library is made of)
+            with open_path(path, "r", self.verbose, suffix="pkl") as file:
+                buffer = restricted_loads(file.read())
         except (pickle.UnpicklingError, EOFError, AttributeError, ImportError) as error:
             raise ValueError(f"{name} is not a replay buffer that can be read here, or is damaged: {error}") from error
         self.replay_buffer = self._fit_replay_buffer(buffer, name)
@@ -699,9 +779,13 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
                 "load a buffer saved with the same env configuration"
             )
         n_copies = self.n_envs // self.n_agents
-        if buffer.n_copies != n_copies:
+        # Another number of copies, or another buffer_size (e.g. -params buffer_size:... on resume): laid out again
+        if buffer.n_copies != n_copies or buffer.buffer_size != max(self.buffer_size // n_copies, 1):
             if self.verbose >= 1:
-                print(f"Laying the replay buffer out again: {buffer.n_copies} environment copies -> {n_copies}")
+                print(
+                    f"Laying the replay buffer out again: {buffer.n_copies} environment copies -> {n_copies}, "
+                    f"{buffer.buffer_size * buffer.n_copies} -> {self.buffer_size} joint transitions"
+                )
             buffer = buffer.with_copies(n_copies, self.buffer_size)
         # Storage where this model keeps its buffer: on its device (storage_device) or in host memory
         assert self.replay_buffer_class is not None

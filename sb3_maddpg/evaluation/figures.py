@@ -8,6 +8,7 @@ Matplotlib is imported with the Agg backend only when a figure is drawn, so no d
 import csv
 import glob
 import os
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -252,19 +253,31 @@ def load_monitor_series(monitor_file: str | os.PathLike) -> Series:
 
     :param monitor_file: the file (SB3's format: a ``#{...}`` header line, then CSV with ``r``, ``l``, ``t`` and the
         metric columns)
-    :return: column name -> values; empty cells (envs without a metric) are NaN
+    :return: column name -> values; empty cells (envs without a metric) are NaN. Lines that are not one number (or
+        an empty cell) per column, e.g. two runs' lines interleaved in one file, are skipped with a warning saying how
+        many.
     """
     with open(monitor_file, newline="") as file:
         first = file.readline()
         if not first.startswith("#"):
             file.seek(0)
-        rows = list(csv.DictReader(file))
-    if not rows:
+        reader = csv.reader(file)
+        header = next(reader, None)
+        rows, skipped = [], 0
+        for line in reader:
+            try:
+                if len(line) != len(header or []):
+                    raise ValueError(f"{len(line)} fields")
+                rows.append([float(cell) if cell != "" else np.nan for cell in line])
+            except ValueError:
+                skipped += 1
+    if skipped:
+        total = skipped + len(rows)
+        warnings.warn(f"{monitor_file}: skipped {skipped} malformed line(s) of {total} (not one number per column)")
+    if not rows or header is None:
         return {}
-    series: Series = {}
-    for key in rows[0]:
-        series[key] = np.array([float(row[key]) if row[key] not in ("", None) else np.nan for row in rows])
-    return series
+    values = np.array(rows, dtype=np.float64)
+    return {key: values[:, column] for column, key in enumerate(header)}
 
 
 def load_tensorboard_series(log_path: str | os.PathLike, prefix: str = "rollout") -> Series:

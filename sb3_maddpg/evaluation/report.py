@@ -1,7 +1,7 @@
 """Evaluate a trained model against the baselines and write the table, the results files and the figures."""
 
-import glob
 import os
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -27,28 +27,81 @@ class ModelEnvMismatchError(ValueError):
     """The model file cannot be loaded, or it was trained for another number of agents or other observations."""
 
 
+class RunFileLoader(yaml.SafeLoader):
+    """
+    YAML's safe loader and the two Python tags RL Zoo writes in a run's ``args.yml`` and ``config.yml``
+    (``collections.OrderedDict``, read as a dict, and ``python/tuple``); any other tag is refused, where RL Zoo's
+    ``UnsafeLoader`` would build (or run) what it names.
+    """
+
+
+def _construct_ordered_dict(loader: yaml.SafeLoader, node: yaml.Node) -> dict[Any, Any]:
+    (pairs,) = loader.construct_sequence(node, deep=True) or [[]]
+    return {key: value for key, value in pairs}
+
+
+RunFileLoader.add_constructor("tag:yaml.org,2002:python/object/apply:collections.OrderedDict", _construct_ordered_dict)
+RunFileLoader.add_constructor(
+    "tag:yaml.org,2002:python/tuple", lambda loader, node: tuple(loader.construct_sequence(node, deep=True))
+)
+
+
+def read_run_yaml(path: str | os.PathLike) -> Any:
+    """
+    Read a run's ``args.yml`` or ``config.yml`` with :class:`RunFileLoader`.
+
+    :param path: the file
+    :return: its content
+    :raises UsageError: (a ``ValueError``) one line naming the file and what it holds that is not plain YAML
+    """
+    from sb3_maddpg.zoo.registry import UsageError
+
+    try:
+        with open(path) as file:
+            return yaml.load(file, Loader=RunFileLoader)  # noqa: S506 (a safe loader)
+    except (yaml.YAMLError, ValueError, TypeError) as error:
+        reason = " ".join(str(error).split())
+        raise UsageError(f"{os.fspath(path)} is not a run file of plain YAML values, it is not read: {reason}") from error
+
+
+def run_params_dir(model_path: str | os.PathLike) -> Path | None:
+    """
+    The folder of the run's own ``args.yml`` and ``config.yml`` for a model inside an RL Zoo run folder
+    ``<env_id>_<N>[_<uuid>]/``: its sub-folder ``<env_id>/``, never another one.
+
+    :param model_path: a model (final, best or checkpoint)
+    :return: the folder, or None when the model is not in a run folder
+    """
+    run_dir = Path(model_path).resolve().parent
+    match = re.fullmatch(r"(.+)_\d+(_[0-9a-f-]{36})?", run_dir.name)
+    if match is None or not (run_dir / match.group(1) / "args.yml").is_file():
+        return None
+    return run_dir / match.group(1)
+
+
 def find_run_config(model_path: str | os.PathLike) -> tuple[str | None, dict[str, Any]]:
     """
     The env id and env kwargs a model was trained with, read from the RL Zoo run folder that holds it
     (``<run>/<env_id>/config.yml`` and ``args.yml``, as ``enjoy`` reads them: the command line's ``--env-kwargs``
-    replace the YAML entry's ``env_kwargs``).
+    replace the YAML entry's ``env_kwargs``), with safe YAML loading (:func:`read_run_yaml`).
 
     :param model_path: a model inside a run folder (final, best or checkpoint)
     :return: the env id (None when the model is not in a run folder) and the env kwargs
+    :raises ValueError: when a run file holds more than plain YAML values
     """
-    run_dir = Path(model_path).resolve().parent
-    args_files = sorted(glob.glob(os.path.join(os.fspath(run_dir), "*", "args.yml")))
-    if not args_files:
+    params_dir = run_params_dir(model_path)
+    if params_dir is None:
         return None, {}
-    params_dir = Path(args_files[0]).parent
-    with open(args_files[0]) as file:
-        args = yaml.load(file, Loader=yaml.UnsafeLoader) or {}
+    args = read_run_yaml(params_dir / "args.yml") or {}
+    if not isinstance(args, dict) or args.get("env") not in (None, params_dir.name):
+        from sb3_maddpg.zoo.registry import UsageError
+
+        raise UsageError(f"{params_dir / 'args.yml'} is not the args.yml of a run of {params_dir.name}")
     env_kwargs: dict[str, Any] = {}
     config_file = params_dir / "config.yml"
     if config_file.is_file():
-        with open(config_file) as file:
-            config = yaml.load(file, Loader=yaml.UnsafeLoader) or {}
-        env_kwargs.update(config.get("env_kwargs") or {})
+        config = read_run_yaml(config_file) or {}
+        env_kwargs.update((config.get("env_kwargs") if isinstance(config, dict) else None) or {})
     if args.get("env_kwargs"):
         env_kwargs = dict(args["env_kwargs"])
     return args.get("env"), env_kwargs

@@ -3,18 +3,22 @@
 import inspect
 import os
 import pickle
+import re
 import shutil
 import socket
 import warnings
+from collections import OrderedDict
 from collections.abc import Callable
 from copy import deepcopy
 from typing import Any
 
 import numpy as np
+import optuna
 from rl_zoo3.exp_manager import ExperimentManager
+from rl_zoo3.hyperparams_opt import HYPERPARAMS_CONVERTER
 from rl_zoo3.utils import ALGOS, get_wrapper_class
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import EvalCallback
+from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecFrameStack, VecNormalize
 
 from sb3_maddpg.common.atomic import atomic_save
@@ -22,7 +26,15 @@ from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
 from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
-from sb3_maddpg.zoo.storage import beyond_max_total_trials, create_shared_study, is_database_url
+from sb3_maddpg.zoo.storage import (
+    HEARTBEAT_GRACE_S,
+    HEARTBEAT_INTERVAL_S,
+    MAX_RETRY,
+    beyond_max_total_trials,
+    create_shared_study,
+    is_database_url,
+    mask_password,
+)
 
 # Keys of an RL Zoo YAML entry that RL Zoo consumes itself; every other key is an argument of the algorithm.
 ZOO_KEYS = frozenset(
@@ -80,6 +92,31 @@ def check_hyperparameter_keys(hyperparams: dict[str, Any], algo: str, where: str
         )
 
 
+def check_zoo_values(hyperparams: dict[str, Any], where: str, n_timesteps_given: bool = False) -> None:
+    """
+    Raise a :class:`UsageError` naming a YAML value RL Zoo would take without a word (``n_timesteps: 0`` trains
+    nothing) or fail on with an unrelated error (``n_envs: 0``: ZeroDivisionError; ``learning_rate: "fast"``: "not
+    enough values to unpack"). The algorithm checks its own arguments.
+
+    :param hyperparams: the YAML entry, possibly updated by ``-params``
+    :param where: where the entry comes from, for the message
+    :param n_timesteps_given: whether ``-n`` replaces the entry's ``n_timesteps``
+    """
+    n_timesteps = hyperparams.get("n_timesteps")
+    if not n_timesteps_given and n_timesteps is not None:
+        if isinstance(n_timesteps, bool) or not isinstance(n_timesteps, int | float) or not n_timesteps >= 1:
+            raise UsageError(f"n_timesteps must be a positive number of timesteps, got {n_timesteps!r} in {where}")
+    n_envs = hyperparams.get("n_envs", 1)
+    if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
+        raise UsageError(f"n_envs must be an integer >= 1 (environment copies), got {n_envs!r} in {where}")
+    learning_rate = hyperparams.get("learning_rate")
+    if isinstance(learning_rate, str) and not re.fullmatch(r"lin_(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?", learning_rate):
+        raise UsageError(
+            "learning_rate must be a number or 'lin_<initial value>' (RL Zoo's linear schedule, e.g. lin_0.001), "
+            f"got {learning_rate!r} in {where}"
+        )
+
+
 def make_zoo_multiagent_vec_env(
     env_id: str,
     n_envs: int,
@@ -110,6 +147,35 @@ def make_zoo_multiagent_vec_env(
     )
 
 
+class ZooRDBStorage(optuna.storages.RDBStorage):
+    """
+    Optuna's ``RDBStorage`` with the heartbeat of running trials: a trial whose worker died (killed, out of memory, a
+    node lost) stops beating, is failed after the grace period and its parameters are tried again
+    (``RetryHeartbeatStaleTrialCallback``), instead of staying RUNNING and counting towards ``--max-total-trials`` for ever.
+    RL Zoo's ``hyperparameters_optimization`` takes it where it expects a storage string (it only asks
+    ``storage.endswith(".log")``), and it is pickled without the URL's password (RL Zoo pickles the study, with its
+    storage, into ``report_*.pkl``).
+
+    :param url: a SQLAlchemy database URL
+    """
+
+    def __init__(self, url: str) -> None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)  # Optuna's heartbeat API
+            retry = optuna.storages.RetryHeartbeatStaleTrialCallback(max_retry=MAX_RETRY)
+        super().__init__(
+            url, heartbeat_interval=HEARTBEAT_INTERVAL_S, grace_period=HEARTBEAT_GRACE_S, heartbeat_stale_trial_callback=retry
+        )
+
+    def endswith(self, suffix: str) -> bool:
+        return False
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = super().__getstate__()
+        state["url"] = mask_password(state["url"])
+        return state
+
+
 class MultiAgentExperimentManager(ExperimentManager):
     """
     RL Zoo's experiment manager (train and Optuna search) for multi-agent envs registered with
@@ -134,20 +200,63 @@ class MultiAgentExperimentManager(ExperimentManager):
     def read_hyperparameters(self) -> tuple[dict[str, Any], dict[str, Any]]:
         if not os.path.isfile(self.config) and (self.config.endswith(".yml") or self.config.endswith(".yaml")):
             raise UsageError(f"config file {self.config} not found")
+        # RL Zoo applies --trial-id only when it is truthy (trial 0 was ignored) and ends in a traceback for a missing
+        # study or trial: the trial's parameters are read here, between the YAML entry's and -params'.
+        trial_id, self.trial_id = self.trial_id, None
         try:
             hyperparams, saved_hyperparams = super().read_hyperparameters()
         except ValueError as error:
             # "Hyperparameters not found for <algo>-<env> in <config>"
             raise UsageError(str(error)) from error
+        finally:
+            self.trial_id = trial_id
+        if trial_id is not None:
+            hyperparams = {**hyperparams, **self._trial_hyperparameters(trial_id), **(self.custom_hyperparams or {})}
+            saved_hyperparams = OrderedDict((key, hyperparams[key]) for key in sorted(hyperparams))
         where = f"the entry {self.env_name.gym_id!r} of {self.config} (or -params)"
         check_hyperparameter_keys(hyperparams, self.algo, where)
+        check_zoo_values(hyperparams, where, n_timesteps_given=self.n_timesteps > 0)
         return hyperparams, saved_hyperparams
+
+    def _trial_hyperparameters(self, trial_id: int) -> dict[str, Any]:
+        """The hyperparameters of trial ``trial_id`` of ``--study-name`` in ``--storage`` (``train --trial-id``)."""
+        if not self.storage or not self.study_name:
+            raise UsageError(f"--trial-id {trial_id} needs the study's --storage and --study-name")
+        where = f"study {self.study_name!r} in {mask_password(self.storage)}"
+        storage: Any = self.storage
+        if storage.endswith(".log"):
+            storage = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(storage))
+        try:
+            study = optuna.load_study(storage=storage, study_name=self.study_name)
+        except KeyError as error:
+            raise UsageError(f"--study-name: there is no {where}") from error
+        numbers = [trial.number for trial in study.get_trials(deepcopy=False)]
+        if trial_id not in numbers:
+            shown = f"trials 0 to {max(numbers)}" if numbers else "no trials"
+            raise UsageError(f"--trial-id {trial_id}: the {where} has {shown}")
+        params = study.trials[numbers.index(trial_id)].params
+        print(f"Loading the hyperparameters of trial {trial_id} of {where}")
+        return HYPERPARAMS_CONVERTER[self.algo](params)
+
+    def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
+        # The --storage password is not written into args.yml (command.txt gets the masked command line, see run_train)
+        storage = getattr(self.args, "storage", None)
+        if isinstance(storage, str):
+            self.args.storage = mask_password(storage)
+        try:
+            super()._save_config(saved_hyperparams)
+        finally:
+            if isinstance(storage, str):
+                self.args.storage = storage
 
     def setup_experiment(self) -> tuple[BaseAlgorithm, dict[str, Any]] | None:
         # RL Zoo creates the run folder before it builds the algorithm: a refused value must not leave it behind
         folder_existed = os.path.exists(self.save_path)
         try:
-            return super().setup_experiment()
+            result = super().setup_experiment()
+            if result is not None:
+                self._check_eval_env(result[0])
+            return result
         except (ValueError, TypeError) as error:
             if not folder_existed:
                 shutil.rmtree(self.save_path, ignore_errors=True)
@@ -156,18 +265,84 @@ class MultiAgentExperimentManager(ExperimentManager):
             # A hyperparameter value the algorithm refuses (e.g. cvar_alpha: 2.0): its own message, no traceback
             raise UsageError(f"{self.algo} on {self.env_name.gym_id}: {error}") from error
 
+    def create_log_folder(self) -> None:
+        # RL Zoo numbers the run folder in __init__ (the latest number + 1) and creates it with exist_ok=True, so runs
+        # started together on one log folder would share (and overwrite) one folder. Take the number with mkdir,
+        # which fails when another run has taken it, and move on to the next.
+        os.makedirs(self.log_path, exist_ok=True)
+        prefix = os.path.join(self.log_path, f"{self.env_name}_")
+        number, suffix = re.fullmatch(r"(\d+)(.*)", self.save_path[len(prefix) :]).groups()  # type: ignore[union-attr]
+        number = int(number)
+        while True:
+            try:
+                os.mkdir(self.save_path)
+                break
+            except FileExistsError:
+                number += 1
+                self.save_path = f"{prefix}{number}{suffix}"
+                self.params_path = f"{self.save_path}/{self.env_name}"
+        os.makedirs(self.params_path, exist_ok=True)
+
+    def _check_eval_env(self, model: BaseAlgorithm) -> None:
+        """
+        Refuse, before training, an evaluation env the model cannot act on (e.g. ``--eval-env-kwargs`` with another
+        number of agents or observation size), which would otherwise fail at the first evaluation.
+        """
+        for callback in self.callbacks:
+            if not isinstance(callback, EvalCallback):
+                continue
+            eval_env = callback.eval_env
+            found = (eval_env.observation_space, eval_env.action_space, getattr(eval_env, "n_agents", None))
+            expected = (model.observation_space, model.action_space, getattr(model, "n_agents", None))
+            if found != expected:
+                raise UsageError(
+                    f"--eval-env-kwargs: the evaluation env has {found[2]} agents, observations {found[0]} and actions "
+                    f"{found[1]}, but the model trains on {expected[2]} agents, observations {expected[0]} and actions "
+                    f"{expected[1]}; give the evaluation env the training env's team and spaces"
+                )
+
     def _load_pretrained_agent(self, hyperparams: dict[str, Any], env: VecEnv) -> BaseAlgorithm:
         # A resumed run keeps the saved action noise, whose schedule has advanced with the saved run (RL Zoo would pass
         # the YAML's, restarting the decay); the rest of the YAML entry applies as in RL Zoo.
         if "action_noise" in hyperparams:
             hyperparams = {key: value for key, value in hyperparams.items() if key != "action_noise"}
             print("Resuming: the saved action noise continues its schedule (the YAML's noise settings are not used)")
-        return super()._load_pretrained_agent(hyperparams, env)
+        # RL Zoo loads <folder>/replay_buffer.pkl beside any model it resumes, the final buffer into a checkpoint too;
+        # here only the buffer saved with that model: replay_buffer.pkl with the final model, and
+        # rl_model_replay_buffer_<N>_steps.pkl with the checkpoint rl_model_<N>_steps.zip.
+        folder, name = os.path.split(self.trained_agent)
+        checkpoint = re.fullmatch(r"(.*)_(\d+)_steps\.zip", name)
+        buffer = f"{checkpoint.group(1)}_replay_buffer_{checkpoint.group(2)}_steps.pkl" if checkpoint else "replay_buffer.pkl"
+        own = name == f"{self.env_name}.zip" or checkpoint is not None
+        buffer_path = os.path.join(folder, buffer)
+        print("Loading pretrained agent")
+        model = ALGOS[self.algo].load(
+            self.trained_agent,
+            env=env,
+            seed=self.seed,
+            tensorboard_log=self.tensorboard_log,
+            verbose=self.verbose,
+            device=self.device,
+            **{key: value for key, value in hyperparams.items() if key not in ("policy", "policy_kwargs")},
+        )
+        if own and os.path.exists(buffer_path):
+            print(f"Loading the replay buffer saved with this model: {buffer_path}")
+            model.load_replay_buffer(buffer_path, truncate_last_traj=self.truncate_last_trajectory)
+        elif os.path.exists(os.path.join(folder, "replay_buffer.pkl")):
+            print(f"Not loading {os.path.join(folder, 'replay_buffer.pkl')}: it was saved with the final model, not {name}")
+        return model
 
     def learn(self, model: BaseAlgorithm) -> None:
         # A resumed run (-i model.zip) continues the saved run's timestep counter (learning_starts, schedules,
         # TensorBoard's x-axis) and trains n_timesteps more, instead of starting again at 0.
-        super().learn(_ContinuedLearning(model) if self.continue_training else model)  # type: ignore[arg-type]
+        try:
+            super().learn(_ContinuedLearning(model) if self.continue_training else model)  # type: ignore[arg-type]
+        except (EOFError, ConnectionError) as error:
+            # An env worker process ended (killed, out of memory): stop as Ctrl-C does, and save what was learnt
+            print(
+                f"An env worker process ended ({type(error).__name__}: {error}): training stopped at timestep "
+                f"{model.num_timesteps}; the model is saved"
+            )
 
     def save_trained_model(self, model: BaseAlgorithm) -> None:
         # As RL Zoo's, with every file written atomically (MADDPG's own saves are; other algorithms' are made so here)
@@ -229,8 +404,16 @@ class MultiAgentExperimentManager(ExperimentManager):
     def hyperparameters_optimization(self) -> None:
         # Workers started together on a database storage would race to create Optuna's tables and the study, and all
         # but one could crash; create (or load) the study here, safely, so that RL Zoo's create_study only loads it.
-        if is_database_url(self.storage):
-            create_shared_study(self.storage, self.study_name)
+        url = self.storage
+        if is_database_url(url):
+            create_shared_study(url, self.study_name)
+            # Opened once the tables exist (building an RDBStorage creates them: the race create_shared_study retries)
+            self.storage = ZooRDBStorage(url)  # type: ignore[assignment]
+            study = optuna.load_study(storage=self.storage, study_name=self.study_name)
+            # A dead worker's trial is failed (and retried) now, before RL Zoo counts the RUNNING trials
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+                optuna.storages.fail_stale_trials(study)
         self._worker_trials = []
         try:
             super().hyperparameters_optimization()
@@ -239,6 +422,8 @@ class MultiAgentExperimentManager(ExperimentManager):
             if "No trials are completed yet" not in str(error):
                 raise
             print(f"No trial of the study {self.study_name!r} has completed yet (all were pruned or failed): no best trial")
+        finally:
+            self.storage = url
         self._report_worker_trials()
 
     def _report_worker_trials(self) -> None:
@@ -281,6 +466,10 @@ class MultiAgentExperimentManager(ExperimentManager):
             if not issubclass(ALGOS[self.algo], MultiAgentOffPolicyAlgorithm):
                 self.callbacks.append(EpisodeMetricsCallback())
             for callback in self.callbacks:
+                if isinstance(callback, CheckpointCallback):
+                    # --save-replay-buffer: each checkpoint with its buffer (rl_model_replay_buffer_<N>_steps.pkl),
+                    # so that a run stopped at a time limit resumes from the checkpoint with its experience
+                    callback.save_replay_buffer = self.save_replay_buffer
                 if isinstance(callback, EvalCallback):
                     # evaluate_policy asks for a Monitor; without one it counts each agent row's return, which is
                     # what it should report here (the mean return of an agent), so the warning is noise.

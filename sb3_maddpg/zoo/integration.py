@@ -10,6 +10,8 @@ multi-agent versions of the last two; single-agent envs and algorithms keep work
 
 import functools
 import importlib
+import signal
+import threading
 from typing import Any
 
 _REGISTERED = False
@@ -70,12 +72,25 @@ def run_train(argv: list[str]) -> None:
     register_with_rl_zoo()
     import rl_zoo3.train
 
-    saved = sys.argv
+    from sb3_maddpg.zoo.storage import mask_password
+
+    saved, saved_orig = sys.argv, getattr(sys, "orig_argv", None)
     sys.argv = ["sb3_maddpg train", *argv]
+    if saved_orig is not None:
+        # RL Zoo writes the command line into command.txt and the study: without the --storage password
+        sys.orig_argv = [mask_password(arg) for arg in saved_orig]
+    # SIGTERM (what SLURM and most schedulers send at a time limit) stops training as Ctrl-C does: RL Zoo then saves
+    # the model (and, with --save-replay-buffer, the replay buffer) before the process ends.
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, signal.default_int_handler) if in_main_thread else None
     try:
         rl_zoo3.train.train()
     finally:
         sys.argv = saved
+        if saved_orig is not None:
+            sys.orig_argv = saved_orig
+        if in_main_thread:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
 def run_enjoy(argv: list[str]) -> None:

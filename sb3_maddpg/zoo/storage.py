@@ -21,6 +21,21 @@ URL_FORMS = "postgresql://USER:PASSWORD@HOST:PORT/DB, sqlite:///PATH.db, or a jo
 CONNECT_TIMEOUT_S = 10
 # Workers starting at the same moment race to create Optuna's tables and the study; the losers retry
 CREATION_ATTEMPTS = 8
+# A worker's running trial records a heartbeat this often (seconds); a trial whose last heartbeat is older than the
+# grace period belongs to a worker that died (killed, out of memory, a node lost): it is failed and its parameters
+# are tried again (Optuna's RetryHeartbeatStaleTrialCallback), at most MAX_RETRY times
+HEARTBEAT_INTERVAL_S = 60
+HEARTBEAT_GRACE_S = 180
+MAX_RETRY = 2
+_PASSWORD = re.compile(r"(://[^:/@\s]*:)[^@/\s]*@")
+
+
+def mask_password(text: str) -> str:
+    """
+    :param text: a database URL, or a command line holding one
+    :return: the text with every URL's password replaced by ``***``
+    """
+    return _PASSWORD.sub(r"\1***@", text)
 
 
 def is_database_url(storage: str | None) -> bool:
@@ -57,7 +72,7 @@ def check_storage(storage: str) -> None:
     try:
         url = make_url(storage)
     except (sqlalchemy.exc.ArgumentError, ValueError) as error:
-        shown = re.sub(r"(://[^:/@]*:)[^@/]*@", r"\1***@", storage)
+        shown = mask_password(storage)
         raise UsageError(f"--storage: malformed database URL {shown!r} ({error}); expected {URL_FORMS}") from error
     shown = url.render_as_string(hide_password=True)
     backend = url.get_backend_name()
@@ -93,15 +108,15 @@ def _default_port(backend: str) -> int | str:
     return {"postgresql": 5432, "mysql": 3306, "mariadb": 3306}.get(backend, "default port")
 
 
-def create_shared_study(storage: str, study_name: str | None, direction: str = "maximize") -> Any:
+def create_shared_study(storage: Any, study_name: str | None, direction: str = "maximize") -> Any:
     """
     Create the study in a database storage, or load it where another worker has, as ``optuna.create_study(...,
     load_if_exists=True)`` does, but safe for workers that start at the same moment: Optuna creates its tables when it
     first opens an empty database, and two processes doing so together make one of them fail (``IntegrityError`` or
-    ``ProgrammingError`` from PostgreSQL's catalogue). Such a worker waits a moment and tries again, by which time the
-    tables (and the study) exist.
+    ``ProgrammingError`` from PostgreSQL's catalogue, ``OperationalError: table ... already exists`` from SQLite).
+    Such a worker waits a moment and tries again, by which time the tables (and the study) exist.
 
-    :param storage: a SQLAlchemy database URL
+    :param storage: a SQLAlchemy database URL, or an ``RDBStorage`` on one
     :param study_name: the study's name
     :param direction: ``"maximize"`` (RL Zoo maximises the mean evaluation reward)
     :return: the ``optuna.Study``
@@ -109,10 +124,16 @@ def create_shared_study(storage: str, study_name: str | None, direction: str = "
     import optuna
     import sqlalchemy
 
+    races = (
+        sqlalchemy.exc.IntegrityError,
+        sqlalchemy.exc.ProgrammingError,
+        sqlalchemy.exc.OperationalError,
+        optuna.exceptions.DuplicatedStudyError,
+    )
     for attempt in range(CREATION_ATTEMPTS):
         try:
             return optuna.create_study(storage=storage, study_name=study_name, load_if_exists=True, direction=direction)
-        except (sqlalchemy.exc.IntegrityError, sqlalchemy.exc.ProgrammingError, optuna.exceptions.DuplicatedStudyError):
+        except races:
             if attempt == CREATION_ATTEMPTS - 1:
                 raise
             # Random back-off, so that the workers that lost do not collide again

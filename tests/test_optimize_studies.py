@@ -1,0 +1,121 @@
+"""Shared Optuna studies on SQLite: start-up races, dead workers, ``train --trial-id`` and the storage's password."""
+
+import pickle
+import sys
+import time
+from pathlib import Path
+
+import optuna
+import pytest
+import sqlalchemy
+from cli_testing import fails_with
+
+from sb3_maddpg.__main__ import main
+from sb3_maddpg.zoo import exp_manager, storage
+
+ROOT = Path(__file__).resolve().parent.parent
+CONFIG = str(ROOT / "zoo_configs" / "maddpg.yml")
+ENV = "uav_coverage_fast_v0"
+TINY = ["--env", ENV, "-conf", CONFIG, "--env-kwargs", "obs_size:16", "max_cycles:10", "n_uavs:2", "--seed", "0"]
+TINY += ["-params", "learning_starts:20", "train_freq:10", "policy_kwargs:dict(n_quantiles=4, net_arch=[16])"]
+PARAMS = {"one_minus_gamma": 0.05, "batch_size_pow": 4, "learning_rate": 1e-3, "tau": 0.01, "train_freq": 3}
+PARAMS |= {"cvar_alpha": 0.5}
+
+
+def test_a_worker_losing_the_sqlite_table_race_retries(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    create = optuna.create_study
+    calls = []
+
+    def lose_once(**kwargs):
+        calls.append(kwargs)
+        if len(calls) == 1:
+            raise sqlalchemy.exc.OperationalError("CREATE TABLE studies", {}, Exception("table studies already exists"))
+        return create(**kwargs)
+
+    monkeypatch.setattr(optuna, "create_study", lose_once)
+    monkeypatch.setattr(storage.time, "sleep", lambda seconds: None)
+    study = storage.create_shared_study(f"sqlite:///{tmp_path / 'optuna.db'}", "race")
+    assert study.study_name == "race" and len(calls) == 2
+
+
+def test_a_dead_workers_trial_is_failed_retried_and_not_counted(tmp_path: Path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    url = f"sqlite:///{tmp_path / 'optuna.db'}"
+    # A worker that started trial 0 and was killed: the trial stays RUNNING, its heartbeat stops
+    dead = optuna.storages.RDBStorage(url, heartbeat_interval=1, grace_period=1)
+    study = optuna.create_study(storage=dead, study_name="shared", direction="maximize")
+    trial = study.ask()
+    dead.record_heartbeat(trial._trial_id)
+    time.sleep(2.5)
+    monkeypatch.setattr(exp_manager, "HEARTBEAT_GRACE_S", 1)
+    argv = ["optimize", *TINY, "-n", "40", "--storage", url, "--study-name", "shared", "--max-total-trials", "1"]
+    assert main([*argv, "--eval-episodes", "1", "--n-evaluations", "1"]) == 0
+    trials = optuna.load_study(study_name="shared", storage=url).get_trials(deepcopy=False)
+    states = [trial.state for trial in trials]
+    assert states[0] == optuna.trial.TrialState.FAIL and optuna.trial.TrialState.COMPLETE in states, states
+    # the dead worker's parameters are tried again
+    assert any(trial.system_attrs.get("failed_trial") == 0 for trial in trials)
+
+
+def _study_with_trials(url: str) -> None:
+    study = optuna.create_study(storage=url, study_name="tuned", direction="maximize")
+    for value, tau in ((1.0, 0.02), (2.0, 0.03)):
+        study.enqueue_trial({**PARAMS, "tau": tau})
+        trial = study.ask()
+        for name, default in PARAMS.items():
+            trial.suggest_int(name, 1, 10) if isinstance(default, int) else trial.suggest_float(name, 1e-5, 1.0)
+        study.tell(trial, value)
+
+
+def test_train_trial_id_0_loads_trial_0(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import yaml
+
+    monkeypatch.chdir(tmp_path)
+    url = f"sqlite:///{tmp_path / 'optuna.db'}"
+    _study_with_trials(url)
+    assert (
+        main(["train", *TINY, "-n", "10", "--eval-freq", "-1", "--storage", url, "--study-name", "tuned", "--trial-id", "0"])
+        == 0
+    )
+    config = (tmp_path / "logs" / "maddpg" / f"{ENV}_1" / ENV / "config.yml").read_text()
+    saved = dict(yaml.load(config, Loader=yaml.UnsafeLoader))  # noqa: S506 (written by this test's run)
+    assert saved["tau"] == 0.02 and saved["train_freq"] == 10  # the trial's tau; -params' train_freq wins
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--study-name", "tuned", "--trial-id", "7"], "--trial-id 7: the study 'tuned' in sqlite:///"),
+        (
+            ["--study-name", "no_such_study", "--trial-id", "0"],
+            "--study-name: there is no study 'no_such_study' in sqlite:///",
+        ),
+    ],
+    ids=["missing-trial", "missing-study"],
+)
+def test_a_missing_trial_or_study_is_one_line(extra: list[str], message: str, tmp_path: Path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    url = f"sqlite:///{tmp_path / 'optuna.db'}"
+    _study_with_trials(url)
+    err = fails_with(["train", *TINY, "-n", "10", "--storage", url, *extra], capsys)
+    assert message in err
+
+
+def test_the_storage_password_is_not_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    url = "postgresql://user:hunter2@db.example/optuna"
+    argv = ["train", *TINY, "-n", "10", "--eval-freq", "-1", "--storage", url, "--study-name", "s"]
+    monkeypatch.setattr(sys, "orig_argv", [sys.executable, "-m", "sb3_maddpg", *argv])
+    assert main(argv) == 0
+    params = tmp_path / "logs" / "maddpg" / f"{ENV}_1" / ENV
+    for name in ("args.yml", "command.txt"):
+        text = (params / name).read_text()
+        assert "hunter2" not in text and "user:***@db.example" in text, name
+    assert storage.mask_password(f"--storage {url} --x") == "--storage postgresql://user:***@db.example/optuna --x"
+
+
+def test_the_pickled_study_storage_has_no_password(tmp_path: Path) -> None:
+    # RL Zoo pickles the study, with its storage, into report_*.pkl
+    shared = exp_manager.ZooRDBStorage(f"sqlite:///{tmp_path / 'optuna.db'}")
+    shared.url = "postgresql://user:hunter2@db.example/optuna"  # as on a database server
+    assert b"hunter2" not in pickle.dumps(shared)

@@ -1,0 +1,159 @@
+"""Opening a model, a replay buffer or a run folder one did not write runs no code from it."""
+
+import base64
+import collections
+import json
+import os
+import pickle
+import zipfile
+from pathlib import Path
+
+import pytest
+import yaml
+from maddpg_test_envs import TargetReachEnv
+
+from sb3_maddpg import MADDPG, make_multiagent_vec_env
+from sb3_maddpg.__main__ import main
+from sb3_maddpg.evaluation.report import check_model_fits_env, find_run_config
+
+
+class _RunsCode:
+    """Unpickled, it creates the file ``path`` (what ``os.system`` or any other call could do)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def __reduce__(self):
+        return (os.mkdir, (os.fspath(self.path),))
+
+
+def _model(tmp_path: Path) -> Path:
+    env = make_multiagent_vec_env(lambda **kwargs: TargetReachEnv(), n_envs=1)
+    path = tmp_path / "model.zip"
+    MADDPG("MlpPolicy", env, buffer_size=50, learning_starts=5, batch_size=4, device="cpu").save(path)
+    return path
+
+
+def _with_data(source: Path, target: Path, change) -> Path:
+    """A copy of the model zip whose JSON ``data`` is changed by ``change(raw)``."""
+    with zipfile.ZipFile(source) as archive:
+        members = {name: archive.read(name) for name in archive.namelist()}
+    raw = json.loads(members["data"])
+    change(raw)
+    members["data"] = json.dumps(raw).encode()
+    with zipfile.ZipFile(target, "w") as archive:
+        for name, content in members.items():
+            archive.writestr(name, content)
+    return target
+
+
+def _code(marker: Path) -> dict[str, str]:
+    return {":type:": "<class 'type'>", ":serialized:": base64.b64encode(pickle.dumps(_RunsCode(marker))).decode()}
+
+
+@pytest.mark.parametrize("key", ["policy_class", "observation_space", "action_noise", "lr_schedule"])
+def test_a_crafted_model_runs_no_code_on_load(key: str, tmp_path: Path) -> None:
+    marker = tmp_path / "ran"
+    crafted = _with_data(_model(tmp_path), tmp_path / "crafted.zip", lambda raw: raw.update({key: _code(marker)}))
+    if key == "lr_schedule":
+        # rebuilt from learning_rate by _setup_model: what it holds is not needed, and not run
+        MADDPG.load(crafted, device="cpu")
+    else:
+        with pytest.raises(ValueError, match=f"the saved {key!r} cannot be read safely: it refers to .*mkdir"):
+            MADDPG.load(crafted, device="cpu")
+    assert not marker.exists()
+
+
+def test_a_zip_the_library_refuses_runs_no_code_either(tmp_path: Path) -> None:
+    marker = tmp_path / "ran"
+
+    def not_maddpg(raw: dict) -> None:
+        del raw["n_agents"]
+        raw["policy_class"] = _code(marker)
+
+    crafted = _with_data(_model(tmp_path), tmp_path / "crafted.zip", not_maddpg)
+    with pytest.raises(ValueError, match="is not a MADDPG model"):
+        MADDPG.load(crafted, device="cpu")
+    with pytest.raises(ValueError, match="is not a MADDPG model"):
+        check_model_fits_env(crafted, "uav_coverage_fast_v0", {})
+    assert not marker.exists()
+
+
+def test_the_evaluate_pre_check_runs_no_code(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    marker = tmp_path / "ran"
+    crafted = _with_data(_model(tmp_path), tmp_path / "crafted.zip", lambda raw: raw.update(observation_space=_code(marker)))
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--model", os.fspath(crafted), "--episodes", "1", "--out", os.fspath(tmp_path / "out")])
+    assert "cannot be read safely" in capsys.readouterr().err
+    assert not marker.exists()
+
+
+def test_a_crafted_replay_buffer_runs_no_code(tmp_path: Path) -> None:
+    marker = tmp_path / "ran"
+    model = MADDPG.load(_model(tmp_path), env=make_multiagent_vec_env(lambda **kwargs: TargetReachEnv(), n_envs=1))
+    (tmp_path / "replay_buffer.pkl").write_bytes(pickle.dumps(_RunsCode(marker)))
+    with pytest.raises(ValueError, match="is not a replay buffer that can be read here.*mkdir"):
+        model.load_replay_buffer(tmp_path / "replay_buffer.pkl")
+    assert not marker.exists()
+
+
+def test_a_learning_rate_saved_as_code_is_given_again(tmp_path: Path) -> None:
+    env = make_multiagent_vec_env(lambda **kwargs: TargetReachEnv(), n_envs=1)
+    MADDPG("MlpPolicy", env, learning_rate=lambda progress: 1e-3 * progress, buffer_size=50, device="cpu").save(
+        tmp_path / "lambda.zip"
+    )
+    with pytest.raises(ValueError, match=r"custom_objects=\{'learning_rate': \.\.\.\}"):
+        MADDPG.load(tmp_path / "lambda.zip", device="cpu")
+    model = MADDPG.load(tmp_path / "lambda.zip", device="cpu", custom_objects={"learning_rate": 1e-4})
+    assert model.lr_schedule(1.0) == pytest.approx(1e-4)
+
+
+def _run_folder(root: Path, env_id: str, args: str, config: str | None = None) -> Path:
+    run = root / f"{env_id}_1"
+    (run / env_id).mkdir(parents=True)
+    (run / env_id / "args.yml").write_text(args)
+    if config is not None:
+        (run / env_id / "config.yml").write_text(config)
+    return run
+
+
+def test_run_files_are_read_with_safe_yaml(tmp_path: Path) -> None:
+    marker = tmp_path / "ran"
+    bad = f"!!python/object/apply:os.mkdir [{os.fspath(marker)!r}]\n"
+    run = _run_folder(tmp_path / "a", "uav_coverage_fast_v0", "env: uav_coverage_fast_v0\n", config=bad)
+    with pytest.raises(ValueError, match="config.yml is not a run file of plain YAML values"):
+        find_run_config(run / "uav_coverage_fast_v0.zip")
+    run = _run_folder(tmp_path / "b", "uav_coverage_fast_v0", bad)
+    with pytest.raises(ValueError, match="args.yml is not a run file of plain YAML values"):
+        find_run_config(run / "uav_coverage_fast_v0.zip")
+    assert not marker.exists()
+    # What RL Zoo writes (an OrderedDict, tuples) is read
+    args = yaml.dump(collections.OrderedDict(env="uav_coverage_fast_v0", env_kwargs={"n_uavs": 2}, shape=(1, 2)))
+    config = yaml.dump(collections.OrderedDict(env_kwargs={"max_cycles": 7}, train_freq=(1, "step")))
+    run = _run_folder(tmp_path / "c", "uav_coverage_fast_v0", args, config)
+    assert find_run_config(run / "rl_model_100_steps.zip") == ("uav_coverage_fast_v0", {"n_uavs": 2})
+
+
+def test_a_models_config_comes_from_its_own_run_folder_only(tmp_path: Path) -> None:
+    # DIR/model.zip beside an unrelated run's sub-folder: that run's settings are not the model's
+    folder = tmp_path / "models"
+    (folder / "other").mkdir(parents=True)
+    (folder / "other" / "args.yml").write_text("env: uav_coverage_cpu_v1\nenv_kwargs: {n_uavs: 5}\n")
+    assert find_run_config(folder / "model.zip") == (None, {})
+    # A run folder's other sub-folders are not read either
+    run = _run_folder(tmp_path / "runs", "uav_coverage_fast_v0", "env: uav_coverage_fast_v0\n")
+    (run / "aaa").mkdir()
+    (run / "aaa" / "args.yml").write_text("env: uav_coverage_cpu_v1\nenv_kwargs: {n_uavs: 5}\n")
+    assert find_run_config(run / "best_model.zip") == ("uav_coverage_fast_v0", {})
+
+
+def test_enjoy_refuses_a_run_yaml_that_would_run_code(tmp_path: Path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    env_id = "uav_coverage_fast_v0"
+    run = _run_folder(tmp_path / "logs" / "maddpg", env_id, f"!!python/object/apply:os.mkdir [{os.fspath(marker)!r}]\n")
+    _model(tmp_path).rename(run / f"{env_id}.zip")
+    with pytest.raises(SystemExit):
+        main(["enjoy", "--env", env_id, "-f", "logs", "--no-render", "-n", "5"])
+    assert "args.yml is not a run file of plain YAML values" in capsys.readouterr().err
+    assert not marker.exists()

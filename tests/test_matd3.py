@@ -129,3 +129,13 @@ def test_resume_at_an_episode_boundary_equals_the_uninterrupted_run(tmp_path: Pa
     vector = th.nn.utils.parameters_to_vector
     assert resumed._n_updates == uninterrupted._n_updates > 0
     assert th.equal(vector(resumed.policy.parameters()), vector(uninterrupted.policy.parameters()))
+
+
+def test_evaluate_loads_each_model_with_the_algorithm_that_saved_it(tmp_path: Path):
+    from sb3_maddpg.evaluation.report import saved_algorithm
+
+    matd3 = make_model()
+    matd3.save(tmp_path / "matd3.zip")
+    MADDPG("MlpPolicy", matd3.env, buffer_size=10).save(tmp_path / "maddpg.zip")
+    assert saved_algorithm(tmp_path / "matd3.zip") is MATD3
+    assert saved_algorithm(tmp_path / "maddpg.zip") is MADDPG

@@ -107,6 +107,22 @@ def find_run_config(model_path: str | os.PathLike) -> tuple[str | None, dict[str
     return args.get("env"), env_kwargs
 
 
+def saved_algorithm(model_path: str | os.PathLike) -> type:
+    """
+    The library's algorithm that saved a model, told by its policy class (read without unpickling code):
+    ``MATD3`` for MATD3's twin-critic policies, ``MADDPG`` otherwise.
+
+    :param model_path: the saved model
+    :return: the algorithm class to load it with
+    """
+    from sb3_maddpg import MADDPG, MATD3
+    from sb3_maddpg.common.model_files import read_maddpg_data
+    from sb3_maddpg.matd3.policies import MATD3Policy
+
+    policy_class = read_maddpg_data(model_path, ("policy_class",)).get("policy_class")
+    return MATD3 if isinstance(policy_class, type) and issubclass(policy_class, MATD3Policy) else MADDPG
+
+
 def check_model_fits_env(model_path: str | os.PathLike, env_id: str, env_kwargs: dict[str, Any]) -> None:
     """
     Check, without loading its networks, that a saved model can act on an env: it is an intact MADDPG model, for the
@@ -194,14 +210,13 @@ def evaluate_and_report(
 
     controllers: list[Controller] = []
     if model_path is not None:
-        from sb3_maddpg import MADDPG
-
         check_model_fits_env(model_path, env_id, kwargs)
+        algorithm = saved_algorithm(model_path)
         try:
-            model = MADDPG.load(model_path, device=device)
+            model = algorithm.load(model_path, device=device)
         except (AssertionError, KeyError, ValueError, TypeError, RuntimeError) as error:
             raise ModelEnvMismatchError(f"{model_path} is not a MADDPG model that can be loaded here: {error}") from error
-        controllers.append(ModelController(model, name="maddpg"))
+        controllers.append(ModelController(model, name=algorithm.__name__.lower()))
     controllers.append(RandomController())
     if core is not None:
         # it reads the simulation

@@ -12,6 +12,7 @@ CORE=${CORE:-0}
 SEEDS=${SEEDS:-"0 1 2"}
 SPREAD_STEPS=${SPREAD_STEPS:-50000}
 what=${1:-all}
+mkdir -p "$OUT"
 run() { echo "$(date -u +%H:%M:%S) $*" >&2; taskset -c "$CORE" "$@"; }
 
 if [ "$what" = spread ] || [ "$what" = all ]; then

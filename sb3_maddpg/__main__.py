@@ -2,7 +2,7 @@
 The project's command: ``python -m sb3_maddpg <command> ...`` (also installed as ``sb3_maddpg``).
 
 - ``train``, ``optimize`` and ``enjoy`` run RL Zoo's own train, Optuna and enjoy code (every ``rl_zoo3`` flag works)
-  with MADDPG and the multi-agent envs registered into it; ``--algo maddpg``, ``--env uav_coverage_cpu_v1`` and
+  with MADDPG, MATD3 and the multi-agent envs registered into it; ``--algo maddpg``, ``--env uav_coverage_cpu_v1`` and
   ``-conf`` the packaged ``zoo_configs/<algo>.yml`` are the defaults. ``record-video`` is RL Zoo's ``record_video``.
 - ``evaluate`` compares a trained model with the random and greedy static baselines and draws the report's figures.
 - ``plot`` draws the report's training figures from a run's logs.
@@ -299,7 +299,7 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
 # ---------------------------------------------------------------------------------------------------------------------
 def run_zoo_command(command: str, argv: list[str]) -> None:
     """
-    Run RL Zoo's train, Optuna search or enjoy with MADDPG and the multi-agent envs registered.
+    Run RL Zoo's train, Optuna search, enjoy or record_video with MADDPG, MATD3 and the multi-agent envs registered.
 
     :param command: ``train``, ``optimize`` or ``enjoy``
     :param argv: RL Zoo's arguments
@@ -389,7 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
     """
     parser = argparse.ArgumentParser(
         prog=PROG,
-        description="MADDPG with quantile-CVaR critics for Stable-Baselines3, run through RL Zoo.",
+        description="MADDPG and MATD3 with quantile-CVaR critics for Stable-Baselines3, run through RL Zoo.",
         epilog=f"`{PROG} COMMAND -h` shows a command's options (train, optimize, enjoy and record-video: RL Zoo's). "
         f"For train, optimize, enjoy and record-video, {DEFAULTS_HELP}.",
     )
@@ -413,7 +413,9 @@ def build_parser() -> argparse.ArgumentParser:
         "f_T, e_T, eta_T) and write CSV, JSON (with each agent's return) and figures.",
     )
     source = evaluate.add_mutually_exclusive_group(required=True)
-    source.add_argument("--model", help="a saved MADDPG model (.zip), e.g. logs/maddpg/uav_coverage_v0_1/uav_coverage_v0.zip")
+    source.add_argument(
+        "--model", help="a saved MADDPG or MATD3 model (.zip), e.g. logs/maddpg/uav_coverage_v0_1/uav_coverage_v0.zip"
+    )
     source.add_argument("--baselines-only", action="store_true", help="evaluate the two baselines only")
     evaluate.add_argument("--episodes", type=int, default=10, help="episodes per method (default: 10)")
     evaluate.add_argument("--out", default=os.path.join("results", "evaluation"), help="output folder")

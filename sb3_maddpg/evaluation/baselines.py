@@ -1,5 +1,6 @@
 """
-Controllers that act in a ``uav_coverage_v0`` ParallelEnv: a trained model and two baselines that need no training.
+Controllers that act in a multi-agent ParallelEnv: a trained model and two baselines that need no training (random
+actions anywhere; the greedy static placement on a UAV coverage env, v0 or v1).
 
 A controller is reset at the start of every episode with the env (so it may read the simulation, ``env.core``) and
 returns one action per live agent at each step. Actions are in [0, 1]^2, in the env's encoding: polar (direction
@@ -219,5 +220,7 @@ class ModelController:
 def _core(env: ParallelEnv) -> Any:
     core = getattr(env, "core", None) or getattr(getattr(env, "unwrapped", None), "core", None)
     if core is None:
-        raise TypeError(f"{type(env).__name__} has no simulation core (`.core`): the baselines need uav_coverage_v0")
+        raise TypeError(
+            f"{type(env).__name__} has no simulation core (`.core`): the greedy placement needs a UAV coverage env (v0 or v1)"
+        )
     return core

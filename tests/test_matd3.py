@@ -132,10 +132,14 @@ def test_resume_at_an_episode_boundary_equals_the_uninterrupted_run(tmp_path: Pa
 
 
 def test_evaluate_loads_each_model_with_the_algorithm_that_saved_it(tmp_path: Path):
+    from sb3_maddpg.common.model_files import read_maddpg_data
     from sb3_maddpg.evaluation.report import saved_algorithm
+
+    def saved_by(path: Path) -> type:
+        return saved_algorithm(read_maddpg_data(path, ("policy_class",))["policy_class"])
 
     matd3 = make_model()
     matd3.save(tmp_path / "matd3.zip")
     MADDPG("MlpPolicy", matd3.env, buffer_size=10).save(tmp_path / "maddpg.zip")
-    assert saved_algorithm(tmp_path / "matd3.zip") is MATD3
-    assert saved_algorithm(tmp_path / "maddpg.zip") is MADDPG
+    assert saved_by(tmp_path / "matd3.zip") is MATD3
+    assert saved_by(tmp_path / "maddpg.zip") is MADDPG

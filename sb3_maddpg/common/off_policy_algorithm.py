@@ -29,7 +29,6 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 import torch as th
 from gymnasium import spaces
-from pettingzoo.utils.env import ParallelEnv
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ConvertCallback, ProgressBarCallback
 from stable_baselines3.common.noise import ActionNoise, VectorizedActionNoise
@@ -190,15 +189,6 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
                 device=device,
             ),
         )
-        if isinstance(env, ParallelEnv):
-            raise TypeError(
-                f"{name} takes an SB3 VecEnv with one row per agent, not a PettingZoo ParallelEnv: "
-                "wrap it with sb3_maddpg.make_multiagent_vec_env(env_fn, n_envs=...)"
-            )
-        if env is not None and not isinstance(env, str) and not isinstance(env.action_space, spaces.Box):
-            raise TypeError(f"{name} accepts Box (continuous) action spaces, got {env.action_space}")
-        if env is not None and not isinstance(env, str) and not isinstance(env.observation_space, spaces.Box):
-            raise TypeError(f"{name} accepts Box observation spaces (vectors or images), got {env.observation_space}")
         super().__init__(
             policy,
             env,  # type: ignore[arg-type]

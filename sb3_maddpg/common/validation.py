@@ -9,6 +9,8 @@ from numbers import Integral, Real
 from typing import Any
 
 import torch as th
+from gymnasium import spaces
+from pettingzoo.utils.env import ParallelEnv
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
@@ -170,13 +172,21 @@ def check_off_policy_arguments(algorithm: str, arguments: dict[str, Any]) -> Non
     """
     from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
 
+    env = arguments["env"]
+    if isinstance(env, ParallelEnv):
+        raise TypeError(
+            f"{algorithm} takes an SB3 VecEnv with one row per agent, not a PettingZoo ParallelEnv: "
+            "wrap it with sb3_maddpg.make_multiagent_vec_env(env_fn, n_envs=...)"
+        )
+    if env is not None and not isinstance(env, str) and not isinstance(env.action_space, spaces.Box):
+        raise TypeError(f"{algorithm} accepts Box (continuous) action spaces, got {env.action_space}")
+    if env is not None and not isinstance(env, str) and not isinstance(env.observation_space, spaces.Box):
+        raise TypeError(f"{algorithm} accepts Box observation spaces (vectors or images), got {env.observation_space}")
     learning_rate = arguments["learning_rate"]
     if not callable(learning_rate):
         check_number("learning_rate", learning_rate, 0.0, low_open=True)
-    for name in ("buffer_size", "batch_size"):
-        value = arguments[name]
-        if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
-            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    check_int("buffer_size", arguments["buffer_size"], 1)
+    check_int("batch_size", arguments["batch_size"], 1)
     check_int("learning_starts", arguments["learning_starts"], 0)
     check_number("tau", arguments["tau"], 0.0, 1.0)
     check_number("gamma", arguments["gamma"], 0.0, 1.0)
@@ -233,9 +243,8 @@ def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
     actor_reg = arguments["actor_reg"]
     if isinstance(actor_reg, bool) or not isinstance(actor_reg, int | float) or not actor_reg >= 0.0:
         raise ValueError(f"actor_reg must be a number >= 0 (0 turns the penalty off), got {actor_reg!r}")
-    for name in ("cuda_graph", "bf16_autocast"):
-        if not isinstance(arguments[name], bool):
-            raise TypeError(f"{name} must be True or False, got {arguments[name]!r}")
+    check_bool("cuda_graph", arguments["cuda_graph"])
+    check_bool("bf16_autocast", arguments["bf16_autocast"])
     check_int("policy_delay", arguments["policy_delay"], 1)
     check_int("critic_warmup_steps", arguments["critic_warmup_steps"], 0)
     if arguments["max_grad_norm"] is not None:

@@ -107,23 +107,21 @@ def find_run_config(model_path: str | os.PathLike) -> tuple[str | None, dict[str
     return args.get("env"), env_kwargs
 
 
-def saved_algorithm(model_path: str | os.PathLike) -> type:
+def saved_algorithm(policy_class: Any) -> type:
     """
-    The library's algorithm that saved a model, told by its policy class (read without unpickling code):
-    ``MATD3`` for MATD3's twin-critic policies, ``MADDPG`` otherwise.
+    The library's algorithm that saved a model, told by its saved policy class (``read_maddpg_data`` reads it without
+    unpickling code): ``MATD3`` for MATD3's twin-critic policies, ``MADDPG`` otherwise.
 
-    :param model_path: the saved model
+    :param policy_class: the model's saved ``policy_class``
     :return: the algorithm class to load it with
     """
     from sb3_maddpg import MADDPG, MATD3
-    from sb3_maddpg.common.model_files import read_maddpg_data
     from sb3_maddpg.matd3.policies import MATD3Policy
 
-    policy_class = read_maddpg_data(model_path, ("policy_class",)).get("policy_class")
     return MATD3 if isinstance(policy_class, type) and issubclass(policy_class, MATD3Policy) else MADDPG
 
 
-def check_model_fits_env(model_path: str | os.PathLike, env_id: str, env_kwargs: dict[str, Any]) -> None:
+def check_model_fits_env(model_path: str | os.PathLike, env_id: str, env_kwargs: dict[str, Any]) -> dict[str, Any]:
     """
     Check, without loading its networks, that a saved model can act on an env: it is an intact MADDPG model, for the
     env's number of agents and observation space. Another number of agents would be read as several copies of the
@@ -132,13 +130,14 @@ def check_model_fits_env(model_path: str | os.PathLike, env_id: str, env_kwargs:
     :param model_path: the saved model
     :param env_id: a registered multi-agent env id
     :param env_kwargs: the env's arguments
+    :return: the class parameters read: ``n_agents``, ``observation_space`` and ``policy_class``
     :raises ModelEnvMismatchError: one line naming the model's and the env's agents and observations
     """
     from sb3_maddpg.common.model_files import read_maddpg_data
     from sb3_maddpg.zoo.registry import make_multiagent_env
 
     try:
-        data = read_maddpg_data(model_path, ("n_agents", "observation_space"))
+        data = read_maddpg_data(model_path, ("n_agents", "observation_space", "policy_class"))
     except (ValueError, FileNotFoundError) as error:
         raise ModelEnvMismatchError(str(error)) from error
     kwargs = {key: value for key, value in env_kwargs.items() if key != "render_mode"}
@@ -152,6 +151,7 @@ def check_model_fits_env(model_path: str | os.PathLike, env_id: str, env_kwargs:
             f"but {env_id} with {kwargs} has {len(agents)} agents and observations {observation_space}; "
             "pass the training env's settings with --env-kwargs"
         )
+    return data
 
 
 def evaluate_and_report(
@@ -210,8 +210,7 @@ def evaluate_and_report(
 
     controllers: list[Controller] = []
     if model_path is not None:
-        check_model_fits_env(model_path, env_id, kwargs)
-        algorithm = saved_algorithm(model_path)
+        algorithm = saved_algorithm(check_model_fits_env(model_path, env_id, kwargs).get("policy_class"))
         try:
             model = algorithm.load(model_path, device=device)
         except (AssertionError, KeyError, ValueError, TypeError, RuntimeError) as error:

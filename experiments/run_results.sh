@@ -29,7 +29,7 @@ fast_actor="$v1_common, \"target_policy_noise\": 0.2, \"actor_learning_rate\": 0
 fast_actor_tpn005="$v1_common, \"target_policy_noise\": 0.05, \"actor_learning_rate\": 0.0003"
 encoder='"features_extractor_kwargs": {"padding": 1, "coord_channels": true, "batch_norm_eps": 0.001, "position_channel": 1}'
 
-declare -A ENV ALGO POLICY ENV_KWARGS STEPS
+declare -A ENV ALGO POLICY ENV_KWARGS STEPS NENVS
 # v1 draws each UAV at its exact position (position_mark="exact") and shows the linked teammates in a fourth channel
 # (teammate_channel=True) since 2026-12-04; the configurations measured before that keep the mark and the channels
 # they were measured with.
@@ -57,6 +57,18 @@ ENV_KWARGS[exact_tpn005_g09]="$exact_no_mates"
 # channel; research log run 59) and 28 000 timesteps: the config since 2026-12-04
 ENV[exact_tpn005_g09_mates]=uav_coverage_cpu_v1; ALGO[exact_tpn005_g09_mates]="${ALGO[exact_tpn005_g09]}"; POLICY[exact_tpn005_g09_mates]="${POLICY[exact_tpn005_g09]}"
 ENV_KWARGS[exact_tpn005_g09_mates]='"position_mark": "exact", "teammate_channel": true'; STEPS[exact_tpn005_g09_mates]=28000
+# The config with the actors reading the critics' encoders (share_features_extractor) and an encoder sized for
+# 16 x 16 inputs (channels 8, 16, 32 instead of the report's 16, 32, 64); with two env copies per step (one update per
+# two timesteps) or one: the training-speed measurements of docs/benchmarks.md
+small_encoder='"features_extractor_kwargs": {"padding": 1, "coord_channels": true, "batch_norm_eps": 0.001, "position_channel": 1, "channels": [8, 16, 32]}'
+for config in fast_shared_small fast_shared_small_envs2; do
+  ENV[$config]=uav_coverage_cpu_v1; ALGO[$config]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[$config]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
+  POLICY[$config]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $small_encoder}"; STEPS[$config]=28000
+done
+NENVS[fast_shared_small_envs2]=2
+ENV[fast_shared_envs2]=uav_coverage_cpu_v1; ALGO[fast_shared_envs2]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared_envs2]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
+POLICY[fast_shared_envs2]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $encoder}"; STEPS[fast_shared_envs2]=28000; NENVS[fast_shared_envs2]=2
+
 # v0 (the report's task at 1 pixel per cell: polar actions, refused walls, the report's reward) with the same settings
 ENV[v0_classic]=uav_coverage_fast_v0; ALGO[v0_classic]="{$v1_algo, \"cvar_alpha\": 1.0}"; POLICY[v0_classic]="{\"n_quantiles\": 1, $encoder}"
 
@@ -73,6 +85,7 @@ run() {  # run CONFIG SEED CORE
   local config=$1 seed=$2 core=$3
   taskset -c "$core" "$py" experiments/uav_learning.py --env "${ENV[$config]}" --env-kwargs "{\"max_cycles\": 300${ENV_KWARGS[$config]:+, ${ENV_KWARGS[$config]}}}" \
     --algo-kwargs "${ALGO[$config]}" --policy-kwargs "${POLICY[$config]}" --timesteps "${timesteps:-${STEPS[$config]:-24000}}" \
+    --n-envs "${NENVS[$config]:-1}" \
     --eval-every 4000 --seed "$seed" --save "$out/${config}_s${seed}.zip" --out "$out/${config}_s${seed}.jsonl" \
     > "$out/${config}_s${seed}.log" 2>&1
 }

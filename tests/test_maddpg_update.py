@@ -283,6 +283,26 @@ def test_batch_norm_eps_must_be_positive(eps):
         ReportCNN(spaces.Box(0, 255, (3, 16, 16), np.uint8), batch_norm_eps=eps)
 
 
+@pytest.mark.parametrize("channels", [(8, 16), (8, 0, 32), (8.0, 16, 32), "8,16,32", (True, 16, 32)])
+def test_report_cnn_channels_must_be_three_positive_integers(channels):
+    from gymnasium import spaces
+
+    with pytest.raises(ValueError, match="channels must be three integers >= 1"):
+        ReportCNN(spaces.Box(0, 255, (3, 16, 16), np.uint8), channels=channels)
+
+
+def test_report_cnn_channels_set_the_widths_and_the_features():
+    from gymnasium import spaces
+
+    encoder = ReportCNN(spaces.Box(0, 255, (4, 16, 16), np.uint8), n_agents=3, padding=1, channels=[8, 16, 32])
+    convolutions = [m for m in encoder.cnn if isinstance(m, th.nn.Conv2d)]
+    # grouped: 3 agents' copies side by side
+    assert [(c.in_channels, c.out_channels) for c in convolutions] == [(12, 24), (24, 48), (48, 96)]
+    # 16 -> 8 -> 4 -> 2 pixels with padding 1: 32 channels x 2 x 2 per agent
+    assert encoder.features_dim == 32 * 2 * 2
+    assert encoder(th.rand(5, 3, 4, 16, 16)).shape == (5, 3, 128)
+
+
 @pytest.mark.parametrize("policy", ["MlpPolicy", "CnnPolicy"])
 def test_sampled_actions_equal_sb3s_predict_path(policy):
     # MADDPG takes the actors' [-1, 1] outputs as they are; SB3's _sample_action maps them to the action space's

@@ -18,7 +18,7 @@ from torch import nn
 class ReportCNN(BaseFeaturesExtractor):
     """
     The report's encoder: Conv(C->16), Conv(16->32), Conv(32->64), each 3x3 with stride 2 and no padding (by default),
-    each followed by ReLU, then BatchNorm over the 64 channels, then flatten.
+    each followed by ReLU, then BatchNorm over the 64 channels, then flatten (other widths with ``channels``).
     The flatten size comes from one dummy forward pass (64 * 9 * 9 = 5184 for 80x80 inputs, 64 for 16x16).
 
     With ``n_agents > 1`` the module holds ``n_agents`` independent copies of this encoder as grouped
@@ -45,6 +45,9 @@ class ReportCNN(BaseFeaturesExtractor):
         env's ``position_mark="exact"`` the centre of mass is the exact position and the maximum is the energy level
         times the largest share of a pixel the mark covers, between 1/4 and 1 at one pixel per cell). The
         networks then get the position exactly, where otherwise they must decode it from three stride-2 convolutions
+    :param channels: output channels of the three convolutions: the report's (16, 32, 64) by default, sized for its
+        80 x 80 images. At one pixel per cell (16 x 16 inputs, 2 x 2 pixels after the third convolution) (8, 16, 32)
+        costs a third of the arithmetic and gives the critics half as many inputs (docs/benchmarks.md)
     """
 
     stacks_agents: ClassVar[bool] = True
@@ -58,6 +61,7 @@ class ReportCNN(BaseFeaturesExtractor):
         coord_channels: bool = False,
         batch_norm_eps: float = 1e-5,
         position_channel: int | None = None,
+        channels: tuple[int, int, int] = (16, 32, 64),
     ) -> None:
         if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 3:
             raise ValueError(
@@ -75,6 +79,12 @@ class ReportCNN(BaseFeaturesExtractor):
             raise ValueError(f"padding must be 0 (the report's) or 1 (every pixel read), got {padding!r}")
         if not isinstance(coord_channels, bool):
             raise TypeError(f"coord_channels must be True or False, got {coord_channels!r}")
+        if (
+            not isinstance(channels, tuple | list)
+            or len(channels) != 3
+            or not all(isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in channels)
+        ):
+            raise ValueError(f"channels must be three integers >= 1 (the convolutions' widths), got {channels!r}")
         if position_channel is not None and (
             isinstance(position_channel, bool)
             or not isinstance(position_channel, int)
@@ -93,14 +103,15 @@ class ReportCNN(BaseFeaturesExtractor):
             rows = th.linspace(0.0, 1.0, height).view(1, height, 1).expand(1, height, width)
             cols = th.linspace(0.0, 1.0, width).view(1, 1, width).expand(1, height, width)
             self.register_buffer("coords", th.cat([cols, rows]).contiguous(), persistent=False)
+        c1, c2, c3 = channels
         self.cnn = nn.Sequential(
-            nn.Conv2d(g * in_channels, g * 16, kernel_size=3, stride=2, padding=padding, groups=g),
+            nn.Conv2d(g * in_channels, g * c1, kernel_size=3, stride=2, padding=padding, groups=g),
             nn.ReLU(),
-            nn.Conv2d(g * 16, g * 32, kernel_size=3, stride=2, padding=padding, groups=g),
+            nn.Conv2d(g * c1, g * c2, kernel_size=3, stride=2, padding=padding, groups=g),
             nn.ReLU(),
-            nn.Conv2d(g * 32, g * 64, kernel_size=3, stride=2, padding=padding, groups=g),
+            nn.Conv2d(g * c2, g * c3, kernel_size=3, stride=2, padding=padding, groups=g),
             nn.ReLU(),
-            nn.BatchNorm2d(g * 64, eps=batch_norm_eps),
+            nn.BatchNorm2d(g * c3, eps=batch_norm_eps),
         )
         # Flatten size per agent from one dummy pass (eval mode so the running statistics stay untouched)
         self.cnn.eval()

@@ -135,6 +135,7 @@ def _check_layer_sizes(name: str, sizes: Any) -> None:
 def check_policy_arguments(
     n_agents: Any,
     share_actor: Any,
+    share_features_extractor: Any,
     n_quantiles: Any,
     n_critics: Any,
     net_arch: Any,
@@ -150,6 +151,7 @@ def check_policy_arguments(
     """
     check_int("n_agents", n_agents, 1)
     check_bool("share_actor", share_actor)
+    check_bool("share_features_extractor", share_features_extractor)
     check_int("n_quantiles", n_quantiles, 1)
     check_int("n_critics", n_critics, 1)
     check_net_arch(net_arch)

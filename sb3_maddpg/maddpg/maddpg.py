@@ -256,14 +256,19 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         """
         with th.no_grad():
             # Target distribution (SPEC 2): r_i + gamma (1 - d) Z_i'(o', a'), a'_j = mu_j'(o'_j) from the target actors
-            next_actions = self.actor_target(replay_data.next_observations)  # (B, N, A)
+            # The target critics encode o' once; target actors that read the critics' encoders reuse them
+            next_features = self.critic_target.encode(replay_data.next_observations)  # (B, N, F)
+            if self.actor_target.reads_critic_features:
+                next_actions = th.tanh(self.actor_target.preactivations_from_features(next_features))
+            else:
+                next_actions = self.actor_target(replay_data.next_observations)  # (B, N, A)
             if self.target_policy_noise > 0.0:
                 # TD3's target policy smoothing: the target is the critic's value around the target action
                 noise = next_actions.new_empty(next_actions.shape).normal_(0.0, self.target_policy_noise)
                 noise = noise.clamp(-self.target_noise_clip, self.target_noise_clip)
                 next_actions = (next_actions + noise).clamp(-1.0, 1.0)
             # With several critic networks (MATD3's twins): the smaller value at each quantile level (clipped double Q)
-            next_quantiles = self.critic_target.all_quantiles(replay_data.next_observations, next_actions).min(dim=0).values
+            next_quantiles = self.critic_target.all_quantiles_from_features(next_features, next_actions).min(dim=0).values
             not_done = 1.0 - replay_data.dones.unsqueeze(-1)  # (B, 1, 1): terminations only, not truncations
             target_quantiles = replay_data.rewards.unsqueeze(-1) + not_done * self.gamma * next_quantiles
 
@@ -337,9 +342,13 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
 
         if update_actor:
             # Actor i maximises CVaR_alpha of Z_i with a_i = mu_i(o_i), after the critic step as in TD3.
-            # The encodings of this step's observations are reused (detached) instead of encoding them again.
+            # The critics' encodings of this step's observations are reused (detached) instead of encoding them
+            # again; actors that read the critics' encoders take them as their input too.
             with self._autocast():
-                preactivations = self.actor.preactivations(replay_data.observations)
+                if self.actor.reads_critic_features:
+                    preactivations = self.actor.preactivations_from_features(features.detach())
+                else:
+                    preactivations = self.actor.preactivations(replay_data.observations)
                 actor_loss = self.actor_loss(replay_data, features.detach(), preactivations)
             self.actor.optimizer.zero_grad(set_to_none=True)
             actor_loss.sum().backward(inputs=list(self.actor.parameters()))

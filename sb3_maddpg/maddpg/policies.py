@@ -28,6 +28,10 @@ class MultiAgentActor(nn.Module):
     :param features_extractor_kwargs: its keyword arguments
     :param normalize_images: divide image observations by 255
     :param shared: one actor (extractor and MLP) for all agents
+    :param critic_features: the critic's per-agent encoders, to read instead of encoders of the actor's own (the
+        actor's MLPs then take the critic's encodings as constants: the critic's loss alone trains the encoders).
+        Borrowed, not owned: they are not among the actor's parameters, modules or state dict. None (the default)
+        gives the actor its own encoders, trained by the actor's loss
     """
 
     def __init__(
@@ -41,12 +45,23 @@ class MultiAgentActor(nn.Module):
         features_extractor_kwargs: dict[str, Any],
         normalize_images: bool,
         shared: bool = False,
+        critic_features: MultiAgentFeatures | None = None,
     ) -> None:
         super().__init__()
         self.n_agents = n_agents
-        self.features = MultiAgentFeatures(
-            observation_space, n_agents, features_extractor_class, features_extractor_kwargs, normalize_images, shared=shared
-        )
+        self.reads_critic_features = critic_features is not None
+        if critic_features is None:
+            self.features = MultiAgentFeatures(
+                observation_space,
+                n_agents,
+                features_extractor_class,
+                features_extractor_kwargs,
+                normalize_images,
+                shared=shared,
+            )
+        else:
+            # Kept out of nn.Module's registry: the critic's optimizer, soft update and state dict own these weights
+            self.__dict__["features"] = critic_features
         self.mu = BatchedMlp(
             1 if shared else n_agents,
             self.features.features_dim,
@@ -60,7 +75,22 @@ class MultiAgentActor(nn.Module):
         :param observations: (B, N, *obs_shape)
         :return: the actions before the tanh squashing, (B, N, action_dim)
         """
+        if self.reads_critic_features:
+            # The critic's encodings are the actor's input, not its parameters: no gradient flows back into them
+            with th.no_grad():
+                features = self.features(observations)
+            return self.mu(features)
         return self.mu(self.features(observations))
+
+    def preactivations_from_features(self, features: th.Tensor) -> th.Tensor:
+        """
+        The actors' MLPs on encodings already computed (with ``critic_features``: the critic's, which the update
+        has at hand, so the observations are not encoded again).
+
+        :param features: (B, N, F)
+        :return: the actions before the tanh squashing, (B, N, action_dim)
+        """
+        return self.mu(features)
 
     def forward(self, observations: th.Tensor) -> th.Tensor:
         """
@@ -226,6 +256,11 @@ class MADDPGPolicy(BasePolicy):
     :param lr_schedule: learning rate schedule
     :param n_agents: number of agents N
     :param share_actor: one actor for all agents instead of one per agent
+    :param share_features_extractor: the actors read the critics' encoders instead of their own: each observation is
+        encoded once per update for actors and critics (and once for both target networks), the encoders are
+        trained by the critics' loss only, and the actors take the encodings as constants (as DrQ and SAC-AE share
+        one encoder between actor and critic). Note that SB3's TD3 and SAC, with the same flag, train the shared
+        extractor through the actor's loss instead. False (the default) gives actors and critics their own encoders
     :param n_quantiles: number of quantiles of each critic (1 gives a classic scalar critic)
     :param n_critics: quantile networks per agent's critic: 1 for MADDPG, 2 for MATD3's twin critics
     :param net_arch: hidden layers of actors and critics: a list, or a dict with keys ``pi`` and ``qf``
@@ -250,6 +285,7 @@ class MADDPGPolicy(BasePolicy):
         lr_schedule: Schedule,
         n_agents: int = 1,
         share_actor: bool = False,
+        share_features_extractor: bool = False,
         n_quantiles: int = 50,
         n_critics: int = 1,
         net_arch: list[int] | dict[str, list[int]] | None = None,
@@ -267,6 +303,7 @@ class MADDPGPolicy(BasePolicy):
         check_policy_arguments(
             n_agents,
             share_actor,
+            share_features_extractor,
             n_quantiles,
             n_critics,
             net_arch,
@@ -295,6 +332,7 @@ class MADDPGPolicy(BasePolicy):
         self.activation_fn = activation_fn
         self.n_agents = n_agents
         self.share_actor = share_actor
+        self.share_features_extractor = share_features_extractor
         self.n_quantiles = n_quantiles
         self.n_critics = n_critics
         common = dict(
@@ -311,17 +349,33 @@ class MADDPGPolicy(BasePolicy):
         self._build(lr_schedule)
 
     def _build(self, lr_schedule: Schedule) -> None:
-        self.actor = MultiAgentActor(**self.actor_kwargs)
-        self.actor_target = MultiAgentActor(**self.actor_kwargs)
+        if self.share_features_extractor:
+            # The critics first: the actors borrow their encoders (the target actors the target critics')
+            self._build_critics(lr_schedule)
+            self._build_actors(lr_schedule, self.critic.features, self.critic_target.features)
+        else:
+            self._build_actors(lr_schedule)
+            self._build_critics(lr_schedule)
+        # Target networks always use their (copied) BatchNorm running statistics
+        self.actor_target.train(False)
+        self.critic_target.train(False)
+
+    def _build_actors(
+        self,
+        lr_schedule: Schedule,
+        critic_features: MultiAgentFeatures | None = None,
+        target_critic_features: MultiAgentFeatures | None = None,
+    ) -> None:
+        self.actor = MultiAgentActor(**self.actor_kwargs, critic_features=critic_features)
+        self.actor_target = MultiAgentActor(**self.actor_kwargs, critic_features=target_critic_features)
         self.actor_target.load_state_dict(self.actor.state_dict())
         self.actor.optimizer = self._make_optimizer(self.actor, lr_schedule(1))  # type: ignore[assignment]
+
+    def _build_critics(self, lr_schedule: Schedule) -> None:
         self.critic = MultiAgentQuantileCritic(**self.critic_kwargs)
         self.critic_target = MultiAgentQuantileCritic(**self.critic_kwargs)
         self.critic_target.load_state_dict(self.critic.state_dict())
         self.critic.optimizer = self._make_optimizer(self.critic, lr_schedule(1))  # type: ignore[assignment]
-        # Target networks always use their (copied) BatchNorm running statistics
-        self.actor_target.train(False)
-        self.critic_target.train(False)
 
     def _make_optimizer(self, module: nn.Module, learning_rate: float) -> th.optim.Optimizer:
         # Adam and AdamW take one fused kernel for all parameters (fused=True, on CPU and GPU alike) unless the
@@ -338,6 +392,7 @@ class MADDPGPolicy(BasePolicy):
             dict(
                 n_agents=self.n_agents,
                 share_actor=self.share_actor,
+                share_features_extractor=self.share_features_extractor,
                 n_quantiles=self.n_quantiles,
                 n_critics=self.n_critics,
                 net_arch=self.net_arch,
@@ -410,6 +465,7 @@ class CnnPolicy(MADDPGPolicy):
         lr_schedule: Schedule,
         n_agents: int = 1,
         share_actor: bool = False,
+        share_features_extractor: bool = False,
         n_quantiles: int = 50,
         n_critics: int = 1,
         net_arch: list[int] | dict[str, list[int]] | None = None,
@@ -426,6 +482,7 @@ class CnnPolicy(MADDPGPolicy):
             lr_schedule,
             n_agents=n_agents,
             share_actor=share_actor,
+            share_features_extractor=share_features_extractor,
             n_quantiles=n_quantiles,
             n_critics=n_critics,
             net_arch=net_arch,

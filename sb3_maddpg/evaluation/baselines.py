@@ -207,12 +207,13 @@ def greedy_step_scores(
     The paper defines this greedy in one line ("the action with the best immediate reward"); what it leaves open is
     decided here (docs/results.md, "The published setting"):
 
-    - the reward is the paper's: f' * sum_k (c'(k) - c(k)) / e_i - p_i, with c' and f' the coverage scores and Jain's
+    - the reward has the form the report's reward took from the paper (SPEC §1.4, rule 8, without the report's entropy
+      bonus): f' * sum_k (c'(k) - c(k)) / e_i - p_i, with c' and f' the coverage scores and Jain's
       fairness after the step, e_i the UAV's own energy this step as the env charges it (E_h hovering, eta l_max for a
       full move, less for a move the wall rule cuts short) and p_i its penalties: the env's wall rule (refused or
       clipped) and, when N > 1, the comm penalty if no active teammate is within R of where it ends;
     - each UAV decides at once with the others (no order between them) and assumes its teammates hover where they are;
-    - no entropy bonus (the source report added it, the paper's reward has none) and no look-ahead;
+    - no look-ahead;
     - ties go to the first candidate: hovering, then the headings counter-clockwise from east.
 
     Coverage as in the env: a PoI is covered when an active UAV is within R0 of it after the move.

@@ -7,6 +7,7 @@
 #   table:     the Markdown table of everything under $OUT (experiments/tmc_table.py).
 # One training run is about an hour on one core (the YAML entry's comment): the full training sweep is 6 N x 3 seeds.
 # Usage: OUT=experiments/results/2026-12-04-tmc CORE=1 bash experiments/tmc_sweep.sh [baselines|train|table|all]
+# A quick check of the pipeline: NS=3 SEEDS=0 TIMESTEPS=200 EPISODES=1 OUT=/tmp/tmc bash experiments/tmc_sweep.sh train
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/tmc}
@@ -18,6 +19,7 @@ SEEDS=${SEEDS:-"0 1 2"}
 EPISODES=${EPISODES:-20}
 EVAL_SEED=${EVAL_SEED:-10000}
 BASELINES=${BASELINES:-"random greedy_step greedy_static"}
+TIMESTEPS=${TIMESTEPS:-}  # empty: the YAML entry's n_timesteps; a small value checks the pipeline
 ENV_ID=uav_coverage_tmc_v1
 what=${1:-all}
 case "$what" in baselines | train | table | all) ;; *) echo "usage: $0 [baselines|train|table|all]" >&2; exit 2 ;; esac
@@ -36,8 +38,10 @@ if [ "$what" = train ] || [ "$what" = all ]; then
     for n in $NS; do
         for seed in $SEEDS; do
             logs="$OUT/logs/n${n}_s$seed"
+            start=$SECONDS
             run "$PY" -m sb3_maddpg train --algo maddpg --env "$ENV_ID" --env-kwargs "n_uavs:$n" --seed "$seed" \
-                -f "$logs" --eval-freq -1 >"$OUT/train_n${n}_s$seed.log" 2>&1
+                ${TIMESTEPS:+-n "$TIMESTEPS"} -f "$logs" --eval-freq -1 >"$OUT/train_n${n}_s$seed.log" 2>&1
+            echo $((SECONDS - start)) >"$OUT/train_n${n}_s$seed.seconds"  # wall clock of the training run
             # the run's own n_uavs is read from its args.yml
             run "$PY" -m sb3_maddpg evaluate --model "$logs/maddpg/${ENV_ID}_1/$ENV_ID.zip" --baselines random \
                 --episodes "$EPISODES" --seed "$EVAL_SEED" --no-gif \
@@ -45,6 +49,5 @@ if [ "$what" = train ] || [ "$what" = all ]; then
         done
     done
 fi
-if [ "$what" = table ] || [ "$what" = all ] || [ "$what" = baselines ]; then
-    "$PY" experiments/tmc_table.py "$OUT" | tee "$OUT/table.md"
-fi
+# every mode ends with the table of all that $OUT holds
+"$PY" experiments/tmc_table.py "$OUT" | tee "$OUT/table.md"

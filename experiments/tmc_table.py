@@ -1,10 +1,12 @@
 """
 The table of ``experiments/tmc_sweep.sh``: for each N, the baselines measured here (mean ± std over episodes), the
-trained MADDPG runs (mean ± std over seeds of each seed's episode means) and the paper's eta_T at that N.
+trained MADDPG runs (mean ± std over seeds of each seed's episode means, and the training minutes per seed) and the
+paper's eta_T at that N.
 
     python experiments/tmc_table.py experiments/results/2026-12-04-tmc
 
-Reads ``<out>/baselines/n<N>/results.csv`` and ``<out>/eval/n<N>_s<seed>/results.csv`` (the ``evaluate`` command's).
+Reads ``<out>/baselines/n<N>/results.csv``, ``<out>/eval/n<N>_s<seed>/results.csv`` (the ``evaluate`` command's) and
+``<out>/train_n<N>_s<seed>.seconds``.
 """
 
 import argparse
@@ -34,27 +36,31 @@ def main() -> None:
     parser.add_argument("out", type=Path, help="the sweep's output folder (OUT of tmc_sweep.sh)")
     args = parser.parse_args()
 
-    lines = ["| N | method | episodes | c_T | f_T | ē_T | η_T |", "|---|---|---|---|---|---|---|"]
+    lines = ["| N | method | episodes | c_T | f_T | ē_T | η_T | train min/seed |", "|---|---|---|---|---|---|---|---|"]
     for folder in sorted((args.out / "baselines").glob("n*"), key=lambda p: int(p.name[1:])):
         for row in read_rows(folder / "results.csv"):
             cells = [f"{float(row[f'{key}_mean']):.3f} ± {float(row[f'{key}_std']):.3f}" for key in METRICS]
-            lines.append(f"| {folder.name[1:]} | {row['method']} | {row['episodes']} | " + " | ".join(cells) + " |")
+            lines.append(f"| {folder.name[1:]} | {row['method']} | {row['episodes']} | " + " | ".join(cells) + " | |")
 
     # Trained runs: one seed's value is its mean over the episodes; the row is mean ± std over seeds.
     trained: dict[int, list[dict[str, str]]] = defaultdict(list)
+    seconds: dict[int, list[float]] = defaultdict(list)
     for folder in (args.out / "eval").glob("n*_s*"):
         match = re.fullmatch(r"n(\d+)_s(\d+)", folder.name)
         if match and (folder / "results.csv").is_file():
             trained[int(match.group(1))] += [r for r in read_rows(folder / "results.csv") if r["method"] != "random"]
+            timing = args.out / f"train_{folder.name}.seconds"
+            if timing.is_file():
+                seconds[int(match.group(1))].append(float(timing.read_text()))
     for n in sorted(trained):
         rows = trained[n]
         cells = []
         for key in METRICS:
             values = np.array([float(r[f"{key}_mean"]) for r in rows])
             cells.append(f"{values.mean():.3f} ± {values.std():.3f}")
-        lines.append(
-            f"| {n} | {rows[0]['method']} ({len(rows)} seeds) | {rows[0]['episodes']} each | " + " | ".join(cells) + " |"
-        )
+        minutes = f"{np.mean(seconds[n]) / 60:.1f}" if seconds[n] else ""
+        label = f"| {n} | {rows[0]['method']} ({len(rows)} seeds) | {rows[0]['episodes']} each | "
+        lines.append(label + " | ".join(cells) + f" | {minutes} |")
     print("\n".join(lines))
 
     ns = sorted(next(iter(PAPER_ETA.values())))

@@ -4,7 +4,8 @@ The project's command: ``python -m sb3_maddpg <command> ...`` (also installed as
 - ``train``, ``optimize`` and ``enjoy`` run RL Zoo's own train, Optuna and enjoy code (every ``rl_zoo3`` flag works)
   with MADDPG, MATD3 and the multi-agent envs registered into it; ``--algo maddpg``, ``--env uav_coverage_cpu_v1`` and
   ``-conf`` the packaged ``zoo_configs/<algo>.yml`` are the defaults. ``record-video`` is RL Zoo's ``record_video``.
-- ``evaluate`` compares a trained model with the random and greedy static baselines and draws the report's figures.
+- ``evaluate`` compares a trained model with baselines (random actions; on the UAV envs the greedy static placement
+  and the step greedy of Liu et al., TMC 2020) and draws the report's figures.
 - ``plot`` draws the report's training figures from a run's logs.
 
 Bad input (unknown env, missing file, unknown YAML key, bad ``--env-kwargs``) ends with a one-line message on stderr
@@ -323,8 +324,9 @@ def run_evaluate(args: argparse.Namespace) -> None:
 
     :param args: parsed arguments
     """
+    from sb3_maddpg.evaluation.baselines import BASELINES, UAV_BASELINES
     from sb3_maddpg.evaluation.report import DEFAULT_ENV_ID, ModelEnvMismatchError, evaluate_and_report, find_run_config
-    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS
+    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
 
     _import_gym_packages(args.gym_packages)
     model_path = args.model
@@ -344,6 +346,16 @@ def run_evaluate(args: argparse.Namespace) -> None:
         raise UsageError(f"unknown env {env_id!r}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
     env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs") or {}
     check_env_kwargs(env_id, {**run_env_kwargs, **env_kwargs}, flag="--env-kwargs")
+    if args.baselines is not None:
+        unknown = [name for name in args.baselines if name not in BASELINES]
+        if unknown:
+            raise UsageError(f"--baselines: unknown baseline(s) {', '.join(unknown)}; known: {', '.join(BASELINES)}")
+        needs_core = [name for name in args.baselines if name in UAV_BASELINES]
+        probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
+        is_uav_env = getattr(probe, "core", None) is not None
+        probe.close()
+        if needs_core and not is_uav_env:
+            raise UsageError(f"--baselines: {', '.join(needs_core)} read(s) a UAV coverage simulation; {env_id} has none")
     _check_writable(args.out, "--out")
     try:
         evaluate_and_report(
@@ -357,6 +369,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
             state_steps=args.state_steps,
             gif=not args.no_gif,
             verbose=args.verbose,
+            baselines=args.baselines,
         )
     except ModelEnvMismatchError as error:
         raise UsageError(f"--model: {error}") from error
@@ -407,7 +420,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     evaluate = commands.add_parser(
         "evaluate",
-        help="evaluate a model against baselines (random actions; on the UAV envs the greedy static placement)",
+        help="evaluate a model against baselines (random actions; on the UAV envs the greedy static placement and "
+        "the step greedy)",
         description="Run N episodes (deterministic actions) for the model and the baselines, print the table "
         "(mean ± std of the team return and the episode length, and on the UAV envs, with start='random', of c_T, "
         "f_T, e_T, eta_T) and write CSV, JSON (with each agent's return) and figures.",
@@ -416,7 +430,15 @@ def build_parser() -> argparse.ArgumentParser:
     source.add_argument(
         "--model", help="a saved MADDPG or MATD3 model (.zip), e.g. logs/maddpg/uav_coverage_v0_1/uav_coverage_v0.zip"
     )
-    source.add_argument("--baselines-only", action="store_true", help="evaluate the two baselines only")
+    source.add_argument("--baselines-only", action="store_true", help="evaluate the baselines only")
+    evaluate.add_argument(
+        "--baselines",
+        nargs="+",
+        metavar="NAME",
+        help="baselines to run: random, greedy_static (flies to a greedy maximum-coverage layout and hovers), "
+        "greedy_step (the greedy of Liu et al., TMC 2020: each step, the best immediate reward of 30 headings and "
+        "hovering); the last two on the UAV envs only (default: random and, on the UAV envs, greedy_static)",
+    )
     evaluate.add_argument("--episodes", type=int, default=10, help="episodes per method (default: 10)")
     evaluate.add_argument("--out", default=os.path.join("results", "evaluation"), help="output folder")
     evaluate.add_argument("--env", help="env id (default: the model's training env, else uav_coverage_v0)")

@@ -1,12 +1,14 @@
 """
-Controllers that act in a multi-agent ParallelEnv: a trained model and two baselines that need no training (random
-actions anywhere; the greedy static placement on a UAV coverage env, v0 or v1).
+Controllers that act in a multi-agent ParallelEnv: a trained model and baselines that need no training (random
+actions anywhere; on a UAV coverage env, v0 or v1, the greedy static placement and the step-by-step greedy of
+Liu et al., TMC 2020).
 
 A controller is reset at the start of every episode with the env (so it may read the simulation, ``env.core``) and
 returns one action per live agent at each step. Actions are in [0, 1]^2, in the env's encoding: polar (direction
 theta = 2 pi a0, distance rho * l_max with rho = a1, SPEC §1.4) or Cartesian (displacement (2 a - 1) l_max).
 """
 
+from collections.abc import Sequence
 from typing import Any, Protocol
 
 import numpy as np
@@ -191,6 +193,147 @@ class GreedyStaticController:
         return {agent: actions[env.possible_agents.index(agent)] for agent in observations}
 
 
+#: The paper's greedy: 30 headings, evenly spaced from 0 (east), each a full move of l_max.
+GREEDY_STEP_HEADINGS = 30
+
+
+def greedy_step_scores(
+    core: Any, n_headings: int = GREEDY_STEP_HEADINGS, eps: float = 1e-4
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    The immediate reward of each UAV's candidate moves, as the greedy of Liu et al. (TMC 2020) scores them: hovering
+    (candidate 0) and a full move of l_max at each of ``n_headings`` headings 2 pi j / n_headings (candidate j + 1).
+
+    The paper defines this greedy in one line ("the action with the best immediate reward"); what it leaves open is
+    decided here (docs/results.md, "The published setting"):
+
+    - the reward has the form the report's reward took from the paper (SPEC §1.4, rule 8, without the report's entropy
+      bonus): f' * sum_k (c'(k) - c(k)) / e_i - p_i, with c' and f' the coverage scores and Jain's
+      fairness after the step, e_i the UAV's own energy this step as the env charges it (E_h hovering, eta l_max for a
+      full move, less for a move the wall rule cuts short) and p_i its penalties: the env's wall rule (refused or
+      clipped) and, when N > 1, the comm penalty if no active teammate is within R of where it ends;
+    - each UAV decides at once with the others (no order between them) and assumes its teammates hover where they are;
+    - no look-ahead;
+    - ties go to the first candidate: hovering, then the headings counter-clockwise from east.
+
+    Coverage as in the env: a PoI is covered when an active UAV is within R0 of it after the move.
+
+    :param core: a UAV coverage simulation (``env.core``) after ``reset``
+    :param n_headings: number of headings of a full move
+    :param eps: added to the energy in the denominator (the env's epsilon)
+    :return: scores (N, 1 + n_headings), the candidates' positions (N, 1 + n_headings, 2) and their distance ratios
+        rho (1 + n_headings,) (0 hovering, 1 moving)
+    """
+    from sb3_maddpg_envs.uav_coverage.dynamics import move_within_walls, step_energy
+
+    if not isinstance(n_headings, int | np.integer) or isinstance(n_headings, bool) or n_headings < 1:
+        raise ValueError(f"n_headings must be an int >= 1, got {n_headings!r}")
+    n, n_candidates = core.n_uavs, 1 + int(n_headings)
+    positions, active = core.positions, core.active
+    pois = core.pois  # (K, 2)
+    angles = 2.0 * np.pi * np.arange(n_headings) / n_headings
+    # (C, 2) displacements and (C,) distance ratios: hovering, then the headings at l_max
+    moves = np.concatenate([np.zeros((1, 2)), core.max_distance * np.stack([np.cos(angles), np.sin(angles)], axis=1)])
+    rho = np.concatenate([[0.0], np.ones(n_headings)])
+
+    # Every (UAV, candidate) pair moved at once under the env's wall rule: flattened to (N C, 2).
+    flat_positions = np.repeat(positions, n_candidates, axis=0)
+    flat_active = np.repeat(active, n_candidates)
+    flat_rho = np.tile(rho, n)
+    _, wall_cost, flown = move_within_walls(
+        flat_positions,
+        np.tile(moves, (n, 1)),
+        flat_rho,
+        flat_active,
+        map_size=core.map_size,
+        max_distance=core.max_distance,
+        wall_mode=core.wall_mode,
+        wall_penalty=core.wall_penalty,
+    )
+    energy = step_energy(
+        flown,
+        np.ones(n * n_candidates, dtype=bool),
+        np.full(n * n_candidates, np.inf),
+        max_distance=core.max_distance,
+        move_energy=core.move_energy,
+        hover_energy=core.hover_energy,
+    ).reshape(n, n_candidates)
+    candidates = flat_positions.reshape(n, n_candidates, 2)
+
+    # Coverage after the step: the teammates (hovering where they are) and UAV i at its candidate.
+    r0_sq = core.coverage_range**2
+    now = pois[None, :, :] - positions[:, None, :]
+    covers_now = (np.einsum("nkd,nkd->nk", now, now) <= r0_sq) & active[:, None]  # (N, K)
+    by_others = (covers_now.sum(axis=0)[None, :] - covers_now) > 0  # (N, K) covered by a teammate of i
+    after = pois[None, None, :, :] - candidates[:, :, None, :]
+    covers_after = (np.einsum("nckd,nckd->nck", after, after) <= r0_sq) & active[:, None, None]  # (N, C, K)
+    covered = covers_after | by_others[:, None, :]
+    t = core.t
+    scores_after = (core.visits[None, None, :] + covered) / (t + 1)  # c'(k), (N, C, K)
+    gain = scores_after.sum(axis=2) - core.coverage_scores.sum()
+    square_sum = np.einsum("nck,nck->nc", scores_after, scores_after)
+    total = scores_after.sum(axis=2)
+    fairness = np.where(square_sum > 0.0, total * total / (len(pois) * np.maximum(square_sum, 1e-300)), 0.0)
+
+    penalties = wall_cost.reshape(n, n_candidates)
+    if n > 1:
+        # Disconnected when no active teammate (where it is now) is within R of the candidate.
+        pair = candidates[:, :, None, :] - positions[None, None, :, :]  # (N, C, N, 2)
+        near = (np.einsum("ncjd,ncjd->ncj", pair, pair) <= core.comm_range**2) & active[None, None, :]
+        near[np.arange(n), :, np.arange(n)] = False
+        penalties = penalties + core.comm_penalty * ~near.any(axis=2)
+    return fairness * gain / (energy + eps) - penalties, candidates, rho
+
+
+class GreedyStepController:
+    """
+    The greedy baseline of Liu et al. (TMC 2020): at every step each UAV takes, of hovering and a full move of l_max
+    at each of 30 headings, the one with the best immediate reward (:func:`greedy_step_scores` says how the reward
+    is read). Unlike :class:`GreedyStaticController` it plans no layout: it climbs the reward one step at a time.
+
+    It reads the simulation (``env.core``: PoIs, coverage history, positions, ranges), which a learned policy does
+    not see.
+
+    :param name: label in tables and figures
+    :param n_headings: number of headings of a full move (the paper's 30)
+    """
+
+    def __init__(self, name: str = "greedy_step", n_headings: int = GREEDY_STEP_HEADINGS) -> None:
+        if not isinstance(n_headings, int) or isinstance(n_headings, bool) or n_headings < 1:
+            raise ValueError(f"n_headings must be an int >= 1, got {n_headings!r}")
+        self.name = name
+        self.n_headings = n_headings
+
+    def reset(self, env: ParallelEnv, seed: int | None = None) -> None:
+        _core(env)  # fails early on an env without a simulation core
+
+    def act(self, observations: dict[str, np.ndarray], env: ParallelEnv) -> dict[str, np.ndarray]:
+        core = _core(env)
+        scores, _, _ = greedy_step_scores(core, self.n_headings, eps=core.eps)
+        best = np.argmax(scores, axis=1)  # the first best: hovering wins ties
+        actions = step_actions(best, self.n_headings, core.action_mode)
+        return {agent: actions[env.possible_agents.index(agent)] for agent in observations}
+
+
+def step_actions(choice: np.ndarray, n_headings: int, action_mode: str = "polar") -> np.ndarray:
+    """
+    The env actions of the greedy's candidates: 0 hovers, j + 1 is a full move at heading 2 pi j / n_headings.
+
+    :param choice: (N,) int, the candidate of each UAV
+    :param n_headings: number of headings
+    :param action_mode: the env's action encoding, ``"polar"`` or ``"cartesian"``
+    :return: (N, 2) float32 actions in [0, 1]^2
+    """
+    choice = np.asarray(choice)
+    moving = choice > 0
+    heading = np.where(moving, choice - 1, 0) / n_headings  # in [0, 1): theta / 2 pi
+    if action_mode == "cartesian":
+        theta = 2.0 * np.pi * heading
+        unit = np.stack([np.cos(theta), np.sin(theta)], axis=1) * moving[:, None]
+        return np.clip(0.5 + 0.5 * unit, 0.0, 1.0).astype(np.float32)
+    return np.stack([heading, moving.astype(np.float64)], axis=1).astype(np.float32)
+
+
 class ModelController:
     """
     A trained multi-agent model (MADDPG or any SB3 model whose ``predict`` takes one row per agent, in the order
@@ -217,10 +360,48 @@ class ModelController:
         return {agent: np.asarray(action, dtype=np.float32) for agent, action in zip(agents, actions, strict=True)}
 
 
+#: The baselines by name, as ``evaluate --baselines`` takes them.
+BASELINES: dict[str, type] = {
+    "random": RandomController,
+    "greedy_static": GreedyStaticController,
+    "greedy_step": GreedyStepController,
+}
+#: The baselines that read the simulation (``env.core``): only on the UAV coverage envs.
+UAV_BASELINES: tuple[str, ...] = ("greedy_static", "greedy_step")
+#: What ``evaluate`` runs when no baseline is named (those of SPEC §3): random actions, and on the UAV envs the
+#: greedy static placement.
+DEFAULT_BASELINES: tuple[str, ...] = ("random", "greedy_static")
+
+
+def make_baselines(names: Sequence[str] | None, uav_env: bool) -> list[Controller]:
+    """
+    The baseline controllers named, in the order given (duplicates dropped).
+
+    :param names: names of :data:`BASELINES`; None for :data:`DEFAULT_BASELINES` (less those that need a UAV env
+        when ``uav_env`` is False)
+    :param uav_env: whether the env is a UAV coverage env (has a simulation core)
+    :return: one new controller per name
+    :raises ValueError: an unknown name, or a UAV baseline asked for on another env
+    """
+    if names is None:
+        names = [name for name in DEFAULT_BASELINES if uav_env or name not in UAV_BASELINES]
+    if isinstance(names, str):
+        raise TypeError(f"baselines must be a sequence of names, got the string {names!r}")
+    chosen: list[str] = []
+    for name in names:
+        if name not in BASELINES:
+            raise ValueError(f"unknown baseline {name!r}; known: {', '.join(BASELINES)}")
+        if name in UAV_BASELINES and not uav_env:
+            raise ValueError(f"the baseline {name!r} reads the simulation of a UAV coverage env; this env has none")
+        if name not in chosen:
+            chosen.append(name)
+    return [BASELINES[name]() for name in chosen]
+
+
 def _core(env: ParallelEnv) -> Any:
     core = getattr(env, "core", None) or getattr(getattr(env, "unwrapped", None), "core", None)
     if core is None:
         raise TypeError(
-            f"{type(env).__name__} has no simulation core (`.core`): the greedy placement needs a UAV coverage env (v0 or v1)"
+            f"{type(env).__name__} has no simulation core (`.core`): the greedy baselines need a UAV coverage env (v0 or v1)"
         )
     return core

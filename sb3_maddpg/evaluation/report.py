@@ -9,7 +9,7 @@ from typing import Any
 import yaml
 
 from sb3_maddpg.common.atomic import check_writable_folder
-from sb3_maddpg.evaluation.baselines import Controller, GreedyStaticController, ModelController, RandomController
+from sb3_maddpg.evaluation.baselines import Controller, ModelController, make_baselines
 from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
 from sb3_maddpg.evaluation.figures import (
     plot_fairness_vs_coverage,
@@ -166,6 +166,7 @@ def evaluate_and_report(
     gif: bool = True,
     frame_every: int | None = None,
     verbose: int = 1,
+    baselines: Sequence[str] | None = None,
 ) -> dict[str, Any]:
     """
     Run ``n_episodes`` for the model (deterministic actions) and the baselines, print the table and write
@@ -186,6 +187,9 @@ def evaluate_and_report(
     :param gif: whether to write the GIF of the recorded episode
     :param frame_every: keep one GIF frame every this many steps (default: at most about 100 frames)
     :param verbose: 0 silent, 1 table, 2 one line per episode
+    :param baselines: names of the baselines to run beside the model (``random``, ``greedy_static``,
+        ``greedy_step``; the last two on the UAV envs only); None for random actions and, on the UAV envs, the
+        greedy static placement
     :return: ``summary``, ``results``, ``table``, ``files`` (name -> path) and ``env_kwargs``
     """
     from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
@@ -216,11 +220,12 @@ def evaluate_and_report(
         except (AssertionError, KeyError, ValueError, TypeError, RuntimeError) as error:
             raise ModelEnvMismatchError(f"{model_path} is not a MADDPG model that can be loaded here: {error}") from error
         controllers.append(ModelController(model, name=algorithm.__name__.lower()))
-    controllers.append(RandomController())
-    if core is not None:
-        # it reads the simulation
-        controllers.append(GreedyStaticController())
-    record_name = controllers[0].name if model_path is not None or core is None else "greedy_static"
+    controllers.extend(make_baselines(baselines, uav_env=core is not None))
+    if not controllers:
+        raise ValueError("nothing to evaluate: give a model or at least one baseline")
+    names = [controller.name for controller in controllers]
+    # The recorded episode: the model's, else the static placement's (the report's figures), else the first baseline's
+    record_name = names[0] if model_path is not None or "greedy_static" not in names else "greedy_static"
 
     if state_steps is None:
         state_steps = sorted({0, max_cycles // 2, max_cycles}) if core is not None else []

@@ -153,4 +153,22 @@ register_multiagent_env("uav_coverage_fast_v0", "sb3_maddpg_envs.uav_coverage_v0
 # Version 1 (the same simulation with the defaults that learn) and its CPU variant: the same task at 1 pixel per cell.
 register_multiagent_env("uav_coverage_v1", "sb3_maddpg_envs.uav_coverage_v1:parallel_env")
 register_multiagent_env("uav_coverage_cpu_v1", "sb3_maddpg_envs.uav_coverage_v1:parallel_env", {"obs_size": 16})
+# The published setting of Liu et al., "Distributed Energy-Efficient Multi-UAV Navigation for Long-Term Communication
+# Coverage by Deep Reinforcement Learning", IEEE TMC 19(6), 2020 (docs/results.md, "The published setting"): v1's rules
+# on the paper's geometry and energy. A step costs hover_energy + (move_energy * l_max - hover_energy) * rho, so 0.5
+# hovering and 1.0 for a full move of one cell, and the energy metric is e_T / (N T * 1.0) as in the paper.
+TMC2020_KWARGS: dict[str, Any] = {
+    "map_size": 10,  # 10 x 10 area, the 100 grid PoIs
+    "n_uavs": 6,  # the paper's default; its sweep is 3 to 8
+    "coverage_range": 3.0,
+    "comm_range": 5.0,
+    "max_distance": 1.0,  # one PoI spacing (inferred from the paper's figures)
+    "move_energy": 1.0,
+    "hover_energy": 0.5,
+    "max_cycles": 500,
+    # 2 pixels per cell: obs_size must be a multiple of map_size, and the CNN (ReportCNN, three 3 x 3 stride-2
+    # convolutions) needs at least 15 x 15 pixels, so 10 (1 pixel per cell) is too small and 20 the smallest that fits.
+    "obs_size": 20,
+}
+register_multiagent_env("uav_coverage_tmc_v1", "sb3_maddpg_envs.uav_coverage_v1:parallel_env", TMC2020_KWARGS)
 register_multiagent_env("simple_spread_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": True})

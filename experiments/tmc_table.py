@@ -1,0 +1,75 @@
+"""
+The table of ``experiments/tmc_sweep.sh``: for each N, the baselines measured here (mean ± std over episodes), the
+trained MADDPG runs (mean ± std over seeds of each seed's episode means, and the training minutes per seed) and the
+paper's eta_T at that N.
+
+    python experiments/tmc_table.py experiments/results/2026-12-04-tmc
+
+Reads ``<out>/baselines/n<N>/results.csv``, ``<out>/eval/n<N>_s<seed>/results.csv`` (the ``evaluate`` command's) and
+``<out>/train_n<N>_s<seed>.seconds``.
+"""
+
+import argparse
+import csv
+import re
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+METRICS = ("coverage", "fairness", "energy", "energy_efficiency")
+# eta_T of Liu et al., IEEE TMC 19(6), 2020, against N (R' 3): its figure data (docs/results.md, "The published setting")
+PAPER_ETA = {
+    "paper MADDPG-style": {3: 0.835, 4: 1.006, 5: 1.171, 6: 1.435, 7: 1.472, 8: 1.542},
+    "paper DRL-EC3": {3: 0.655, 4: 0.893, 5: 1.134, 6: 1.232, 7: 1.415, 8: 1.430},
+    "paper random": {3: 0.503, 4: 0.741, 5: 0.937, 6: 1.063, 7: 1.222, 8: 1.326},
+}
+
+
+def read_rows(path: Path) -> list[dict[str, str]]:
+    with open(path) as file:
+        return list(csv.DictReader(file))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    parser.add_argument("out", type=Path, help="the sweep's output folder (OUT of tmc_sweep.sh)")
+    args = parser.parse_args()
+
+    lines = ["| N | method | episodes | c_T | f_T | ē_T | η_T | train min/seed |", "|---|---|---|---|---|---|---|---|"]
+    for folder in sorted((args.out / "baselines").glob("n*"), key=lambda p: int(p.name[1:])):
+        for row in read_rows(folder / "results.csv"):
+            cells = [f"{float(row[f'{key}_mean']):.3f} ± {float(row[f'{key}_std']):.3f}" for key in METRICS]
+            lines.append(f"| {folder.name[1:]} | {row['method']} | {row['episodes']} | " + " | ".join(cells) + " | |")
+
+    # Trained runs: one seed's value is its mean over the episodes; the row is mean ± std over seeds.
+    trained: dict[int, list[dict[str, str]]] = defaultdict(list)
+    seconds: dict[int, list[float]] = defaultdict(list)
+    for folder in (args.out / "eval").glob("n*_s*"):
+        match = re.fullmatch(r"n(\d+)_s(\d+)", folder.name)
+        if match and (folder / "results.csv").is_file():
+            trained[int(match.group(1))] += [r for r in read_rows(folder / "results.csv") if r["method"] != "random"]
+            timing = args.out / f"train_{folder.name}.seconds"
+            if timing.is_file():
+                seconds[int(match.group(1))].append(float(timing.read_text()))
+    for n in sorted(trained):
+        rows = trained[n]
+        cells = []
+        for key in METRICS:
+            values = np.array([float(r[f"{key}_mean"]) for r in rows])
+            cells.append(f"{values.mean():.3f} ± {values.std():.3f}")
+        minutes = f"{np.mean(seconds[n]) / 60:.1f}" if seconds[n] else ""
+        label = f"| {n} | {rows[0]['method']} ({len(rows)} seeds) | {rows[0]['episodes']} each | "
+        lines.append(label + " | ".join(cells) + f" | {minutes} |")
+    print("\n".join(lines))
+
+    ns = sorted(next(iter(PAPER_ETA.values())))
+    print()
+    print("| paper (η_T) | " + " | ".join(f"N {n}" for n in ns) + " |")
+    print("|---|" + "---|" * len(ns))
+    for method, values in PAPER_ETA.items():
+        print(f"| {method} | " + " | ".join(f"{values[n]:.3f}" for n in ns) + " |")
+
+
+if __name__ == "__main__":
+    main()

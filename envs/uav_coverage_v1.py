@@ -19,7 +19,12 @@ compare directly. `docs/environment.md` lists each difference with the reason an
 
 ```python
 uav_coverage_v1.parallel_env(**V1_DEFAULTS, obs_size=16)   # any parameter of v0 can be given
+uav_coverage_v1.parallel_env(**HAZARDS, obs_size=16)        # the hazardous task (uav_coverage_hazard_cpu_v1)
 ```
+
+Hazards are off by default (v0 and v1 as above); `HAZARDS` switches on the setting of the hazardous task, where
+a team hugging the walls has the better mean team return and one keeping a margin the better worst decile
+(docs/environment.md, "Hazards").
 """
 
 from typing import Any
@@ -28,7 +33,7 @@ from pettingzoo.utils.env import AECEnv
 
 from sb3_maddpg_envs.uav_coverage import uav_coverage
 
-__all__ = ["V1_DEFAULTS", "env", "parallel_env", "raw_env"]
+__all__ = ["HAZARDS", "V1_DEFAULTS", "env", "hazard_parallel_env", "parallel_env", "raw_env"]
 
 #: Where v1's defaults differ from v0's (the other parameters keep v0's defaults).
 V1_DEFAULTS: dict[str, Any] = {
@@ -44,6 +49,18 @@ V1_DEFAULTS: dict[str, Any] = {
     "teammate_channel": True,
 }
 
+#: The hazards of the hazardous task (``uav_coverage_hazard_cpu_v1``): wind hits a UAV at 75 % of its steps and
+#: pushes it by a Lomax distance of scale 2 cells and tail index 8 (P(d > x) = (1 + x / 2)^-8: median 0.18 cells, one
+#: gust in 660 beyond 2.5 cells, one in 12 500 beyond 4.5); one thrown against the boundary crashes and loses 200
+#: energy (an energy term of 100 in the reward, most of a team's episode return); each radio link fails at 5 % of the steps.
+HAZARDS: dict[str, Any] = {
+    "gust_prob": 0.75,
+    "gust_scale": 2.0,
+    "gust_tail": 8.0,
+    "crash_energy": 200.0,
+    "link_failure_prob": 0.05,
+}
+
 
 def parallel_env(**kwargs: Any) -> uav_coverage.UAVCoverageEnv:
     """
@@ -52,6 +69,15 @@ def parallel_env(**kwargs: Any) -> uav_coverage.UAVCoverageEnv:
     :param kwargs: ``render_mode`` and any parameter of ``UAVCoverageCore``; they override v1's defaults
     """
     return uav_coverage.UAVCoverageEnv(**{**V1_DEFAULTS, **kwargs}, name="uav_coverage_v1")
+
+
+def hazard_parallel_env(**kwargs: Any) -> uav_coverage.UAVCoverageEnv:
+    """
+    The hazardous task as a PettingZoo ``ParallelEnv``: v1's defaults with :data:`HAZARDS`.
+
+    :param kwargs: as for :func:`parallel_env`; they override v1's defaults and the hazards
+    """
+    return parallel_env(**{**HAZARDS, **kwargs})
 
 
 def raw_env(**kwargs: Any) -> AECEnv:

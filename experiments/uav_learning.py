@@ -26,16 +26,10 @@ from stable_baselines3.common.callbacks import BaseCallback
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
 from sb3_maddpg.common.noise import DecayingGaussianNoise
 from sb3_maddpg.evaluation.baselines import ModelController
-from sb3_maddpg.evaluation.evaluate import METRICS, evaluate_controllers
+from sb3_maddpg.evaluation.evaluate import METRICS, evaluate_controllers, worst_decile
 from sb3_maddpg.zoo.registry import make_multiagent_env
 
 EVAL_SEED = 10_000
-
-
-def worst_decile(values: list[float]) -> float:
-    """Mean of the lowest 10 % of the values (at least one)."""
-    ordered = np.sort(np.asarray(values, dtype=np.float64))
-    return float(ordered[: max(1, len(ordered) // 10)].mean())
 
 
 def evaluate(model: MADDPG, env_id: str, env_kwargs: dict[str, Any], n_episodes: int) -> dict[str, float]:

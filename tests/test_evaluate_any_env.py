@@ -17,7 +17,7 @@ def test_evaluate_and_plot_a_brought_env(tmp_path: Path, monkeypatch, capsys) ->
     run = tmp_path / "logs" / "maddpg" / "simple_spread_v3_1"
     assert main(["evaluate", "--model", str(run / "simple_spread_v3.zip"), "--episodes", "2", "--out", "eval"]) == 0
     table = capsys.readouterr().out
-    assert "| method | episodes | team return | length |" in table and "| random | 2 |" in table
+    assert "| method | episodes | team return | worst 10 % team return | length |" in table and "| random | 2 |" in table
     with open(tmp_path / "eval" / "episodes.csv") as file:
         rows = list(csv.DictReader(file))
     assert {"return", "return_agent_0", "return_agent_2", "length"} <= set(rows[0])

@@ -17,6 +17,8 @@ from sb3_maddpg.evaluation import (
     summarize,
 )
 from sb3_maddpg.evaluation.baselines import assign_targets, fly_to
+from sb3_maddpg.evaluation.evaluate import format_table, worst_decile
+from sb3_maddpg.zoo.registry import make_multiagent_env
 from sb3_maddpg_envs import uav_coverage_v0
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -153,3 +155,41 @@ def test_plot_training_logs_from_a_monitor_file(tmp_path) -> None:
 def test_plot_training_logs_without_metrics_is_an_error(tmp_path) -> None:
     with pytest.raises(FileNotFoundError, match="no training log"):
         plot_training_logs(tmp_path, tmp_path / "figures")
+
+
+def test_worst_decile_is_the_mean_of_the_lowest_tenth() -> None:
+    # 20 values: the lowest 2 (-7 and 1) -> -3; 9 values: the lowest one; one value: itself
+    values = [5.0, 1.0, 3.0, -7.0, *range(10, 26)]
+    assert worst_decile(values) == -3.0
+    assert worst_decile([4.0, 2.0, 9.0, 8.0, 7.0, 6.0, 5.0, 3.0, 10.0]) == 2.0
+    assert worst_decile([1.5]) == 1.5
+    with pytest.raises(ValueError, match="non-empty"):
+        worst_decile([])
+
+
+def test_summary_and_table_show_the_worst_decile_and_the_hazard_events() -> None:
+    results = {
+        "a": [{"return": float(r), "length": 3.0, "crashes": float(r < 3), "gusts": 2.0} for r in range(1, 21)],
+    }
+    (row,) = summarize(results)
+    assert row["return_worst_decile"] == 1.5 and row["return_mean"] == 10.5
+    assert row["crashes_mean"] == 0.1
+    table = format_table([row])
+    header = table.splitlines()[0]
+    assert header == "| method | episodes | team return | worst 10 % team return | length | gusts | crashes |"
+    assert "| 10.5000 ± 5.7663 | 1.5000 | 3.0000 ± 0.0000 | 2.0000 ± 0.0000 | 0.1000 ± 0.3000 |" in table
+    # an env without hazards: no hazard column
+    plain = format_table(summarize({"b": [{"return": 1.0, "length": 2.0}]}))
+    assert "crashes" not in plain and "worst 10 % team return" in plain
+
+
+def test_evaluation_reports_hazard_events_per_episode() -> None:
+    results, _ = evaluate_controllers(
+        lambda: make_multiagent_env("uav_coverage_hazard_cpu_v1", n_uavs=3, max_cycles=20),
+        [RandomController()],
+        n_episodes=2,
+        seed=0,
+    )
+    episode = results["random"][0]
+    assert {"gusts", "crashes", "link_failures", "depletions"} <= set(episode)
+    assert episode["gusts"] > 0  # p_g = 0.75: about 45 gusts in 3 x 20 steps

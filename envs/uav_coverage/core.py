@@ -3,8 +3,8 @@
 This module has no Gymnasium or PettingZoo import: the PettingZoo wrapper (``uav_coverage.py``), the rendering
 (``rendering.py``) and the benchmarks all sit on top of :class:`UAVCoverageCore`. The rules live beside it, each a
 module of pure array functions: ``dynamics.py`` (moves, walls, energy, radio links), ``rewards.py`` (coverage,
-entropy, metrics, rewards), ``observations.py`` (the images), ``pois.py`` (PoIs from a lattice or an image) and
-``validation.py`` (the parameter checks).
+entropy, metrics, rewards), ``hazards.py`` (gusts, crashes and link failures, off by default), ``observations.py`` (the
+images), ``pois.py`` (PoIs from a lattice or an image) and ``validation.py`` (the parameter checks).
 
 Shapes (N UAVs, K points of interest, map side L, observation side S, block side s = S / L):
 
@@ -24,6 +24,7 @@ import os
 import numpy as np
 
 from .dynamics import ACTION_MODES, WALL_MODES, commanded_move, linked, move_within_walls, step_energy
+from .hazards import HAZARD_COUNTS, crash_drain, gust_push, push_within_walls, surviving_links
 from .observations import POSITION_MARKS, ObservationDrawer, uav_values
 from .pois import lattice_pois, load_poi_image, pois_from_image
 from .rewards import REWARD_MODES, cell_entropy, coverage_credit, covering_pairs, energy_cost, report_reward, team_metrics
@@ -94,6 +95,17 @@ class UAVCoverageCore:
         the square covers, so the mark's centre of mass is the position itself, to the uint8 rounding). Which PoIs a
         disc of radius R0 covers depends on where in its cell the UAV is (29 to 32 lattice PoIs at R0 = 3), so a
         policy that only knows the cell cannot place its disc well
+    :param gust_prob: p_g, hazard: the probability that a wind gust hits an active UAV at a step (0, the default, is
+        no gusts). A gust pushes the UAV after its own move by a heavy-tailed distance (``gust_scale``,
+        ``gust_tail``) in a uniformly random direction; one pushed out of the area stops at the boundary and crashes:
+        it is charged ``wall_penalty`` and loses ``crash_energy``
+    :param gust_scale: s, the gusts' distance scale: P(distance > x) = (1 + x / s)^(-a)
+    :param gust_tail: a, the gusts' tail index (>= 0.5; smaller is heavier: the distance has a finite mean only for
+        a > 1 and a finite variance only for a > 2)
+    :param crash_energy: E_c, energy a UAV loses when a gust crashes it (never more than it has left); it counts as
+        energy spent in the reward and in the energy metric
+    :param link_failure_prob: p_f, hazard: the probability that a radio link in range fails at a step, each link on its
+        own (0, the default, is no failures); a UAV whose links all fail is disconnected (charged ``comm_penalty``)
     """
 
     def __init__(
@@ -125,6 +137,11 @@ class UAVCoverageCore:
         energy_coef: float = 0.5,
         teammate_channel: bool = False,
         position_mark: str = "cell",
+        gust_prob: float = 0.0,
+        gust_scale: float = 1.0,
+        gust_tail: float = 2.0,
+        crash_energy: float = 0.0,
+        link_failure_prob: float = 0.0,
     ) -> None:
         # --- configuration, validated where it enters -------------------------------------------------------------
         self.map_size = check_int("map_size", map_size, 1)
@@ -160,6 +177,16 @@ class UAVCoverageCore:
             raise TypeError(f"teammate_channel must be a bool, got {teammate_channel!r}")
         self.teammate_channel = bool(teammate_channel)
         self.position_mark = check_choice("position_mark", position_mark, POSITION_MARKS)
+        # Hazards (all off by default, and then no random number is drawn: v0 and v1 are unchanged).
+        self.gust_prob = check_real("gust_prob", gust_prob, low_inclusive=True, high=1.0, high_inclusive=True)
+        self.gust_scale = check_real("gust_scale", gust_scale)
+        # a >= 0.5: below, a single gust's distance is so heavy-tailed that almost every gust crosses the map
+        self.gust_tail = check_real("gust_tail", gust_tail, low=0.5, low_inclusive=True)
+        self.crash_energy = check_real("crash_energy", crash_energy, low_inclusive=True)
+        # p_f < 1: with certain failure there would be no links at all, a comm_range of 0 in disguise
+        self.link_failure_prob = check_real("link_failure_prob", link_failure_prob, low_inclusive=True, high=1.0)
+        #: Whether a hazard is switched on (the infos then hold the hazard counters).
+        self.hazards = self.gust_prob > 0.0 or self.link_failure_prob > 0.0
         #: Channels of an agent's observation: 3, or 4 with the teammate channel.
         self.n_obs_channels = 4 if self.teammate_channel else 3
         self._images = ObservationDrawer(self.map_size, self.obs_size, self.position_mark)
@@ -226,10 +253,15 @@ class UAVCoverageCore:
         self.total_energy_spent = 0.0
         self.wall_hits = np.zeros(n, dtype=np.int64)
         self.disconnections = np.zeros(n, dtype=np.int64)
+        #: Hazard counters per UAV since reset: gusts, crashes, link failures (steps cut off by failed links only) and
+        #: depletions (0 or 1)
+        self.hazard_counts = {key: np.zeros(n, dtype=np.int64) for key in HAZARD_COUNTS}
         # What happened at the last step, kept for tests, rendering and debugging.
         self.last_energy_spent = np.zeros(n, dtype=np.float64)
         self.last_wall_hit = np.zeros(n, dtype=bool)
         self.last_disconnected = np.zeros(n, dtype=bool)
+        self.last_gust = np.zeros((n, 2), dtype=np.float64)
+        self.last_crashed = np.zeros(n, dtype=bool)
         self.last_penalties = np.zeros(n, dtype=np.float64)
         self.last_entropy = 0.0
         self.last_shared_reward = 0.0
@@ -315,6 +347,10 @@ class UAVCoverageCore:
         self.total_energy_spent = 0.0
         self.wall_hits.fill(0)
         self.disconnections.fill(0)
+        for counts in self.hazard_counts.values():
+            counts.fill(0)
+        self.last_gust.fill(0.0)
+        self.last_crashed.fill(False)
         self.last_energy_spent.fill(0.0)
         self.last_wall_hit.fill(False)
         self.last_disconnected.fill(False)
@@ -367,7 +403,23 @@ class UAVCoverageCore:
             wall_penalty=self.wall_penalty,
         )
 
-        # 4. Energy, charged also for a refused move, never more than what is left.
+        # 3b. Hazard: a gust pushes each UAV it hits (after its own move); one thrown out of the area stops at the
+        # boundary and crashes. Three draws per UAV and step whether or not it is hit, so the stream stays aligned.
+        crashed = hit = None
+        if self.gust_prob > 0.0:
+            hit, push = gust_push(
+                self._rng.random((self.n_uavs, 3)),
+                active,
+                gust_prob=self.gust_prob,
+                gust_scale=self.gust_scale,
+                gust_tail=self.gust_tail,
+                map_size=self.map_size,
+            )
+            crashed = push_within_walls(self.positions, push, hit, self.map_size)
+            self.last_gust[...] = push
+            self.last_crashed[...] = crashed
+
+        # 4. Energy, charged also for a refused move, never more than what is left; a crash costs E_c more.
         spent = step_energy(
             rho,
             active,
@@ -376,6 +428,8 @@ class UAVCoverageCore:
             move_energy=self.move_energy,
             hover_energy=self.hover_energy,
         )
+        if crashed is not None:
+            spent += crash_drain(crashed, self.energy - spent, self.crash_energy)
         self.energy -= spent
         step_energy_sum = float(spent.sum())
         self.total_energy_spent += step_energy_sum
@@ -392,9 +446,16 @@ class UAVCoverageCore:
         score_sum = float(self.coverage_scores.sum())
 
         # 6. Connectivity: an active UAV with no other active UAV within R is charged p_c (never when N = 1).
+        # Hazard: each link in range fails on its own with probability p_f; a UAV whose links all failed is cut off.
+        cut_off = None
         if self.n_uavs > 1:
             # self.active still holds this step's active set (depletion takes effect below, at the end of the step)
-            disconnected = active & ~self._linked().any(axis=1)
+            links = self._linked()
+            if self.link_failure_prob > 0.0:
+                working = surviving_links(links, self._rng.random((self.n_uavs, self.n_uavs)), self.link_failure_prob)
+                cut_off = links.any(axis=1) & ~working.any(axis=1)
+                links = working
+            disconnected = active & ~links.any(axis=1)
         else:
             disconnected = np.zeros(1, dtype=bool)
 
@@ -414,6 +475,8 @@ class UAVCoverageCore:
 
         # 8. Shared reward and per-agent rewards.
         penalties = wall_cost + self.comm_penalty * disconnected
+        if crashed is not None:
+            penalties = penalties + self.wall_penalty * crashed
         if self.reward_mode == "report":
             shared = report_reward(
                 self.fairness,
@@ -444,6 +507,14 @@ class UAVCoverageCore:
 
         # 9. Termination when every UAV is depleted; truncation at t = T (termination wins when both happen).
         self.active[...] = self.energy > self.depletion_level
+        if self.hazards:
+            counts = self.hazard_counts
+            if hit is not None:
+                counts["gusts"] += hit
+                counts["crashes"] += crashed
+            if cut_off is not None:
+                counts["link_failures"] += cut_off
+            counts["depletions"] += active & ~self.active
         terminated = not self.active.any()
         truncated = (not terminated) and self.t >= self.max_cycles
         self._needs_reset = terminated or truncated
@@ -501,8 +572,16 @@ class UAVCoverageCore:
         }
 
     def infos(self) -> list[dict[str, float | int]]:
-        """One info dict per UAV: the team metrics plus this UAV's ``wall_hits`` and ``disconnections`` so far."""
+        """
+        One info dict per UAV: the team metrics plus this UAV's ``wall_hits`` and ``disconnections`` so far and, when a
+        hazard is switched on, its ``gusts``, ``crashes``, ``link_failures`` and ``depletions`` so far.
+        """
         shared = self.metrics()
         walls = self.wall_hits.tolist()
         disconnections = self.disconnections.tolist()
-        return [{**shared, "wall_hits": walls[i], "disconnections": disconnections[i]} for i in range(self.n_uavs)]
+        infos = [{**shared, "wall_hits": walls[i], "disconnections": disconnections[i]} for i in range(self.n_uavs)]
+        if self.hazards:
+            for key, counts in self.hazard_counts.items():
+                for info, value in zip(infos, counts.tolist(), strict=True):
+                    info[key] = value
+        return infos

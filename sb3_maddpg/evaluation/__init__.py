@@ -7,7 +7,15 @@ from sb3_maddpg.evaluation.baselines import (
     RandomController,
     greedy_placement,
 )
-from sb3_maddpg.evaluation.evaluate import METRICS, evaluate_controllers, format_table, run_episode, summarize, write_results
+from sb3_maddpg.evaluation.evaluate import (
+    METRICS,
+    evaluate_controllers,
+    format_table,
+    run_episode,
+    summarize,
+    worst_decile,
+    write_results,
+)
 from sb3_maddpg.evaluation.figures import (
     plot_fairness_vs_coverage,
     plot_fairness_vs_efficiency,
@@ -37,5 +45,6 @@ __all__ = [
     "run_episode",
     "save_episode_figures",
     "summarize",
+    "worst_decile",
     "write_results",
 ]

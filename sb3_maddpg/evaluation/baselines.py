@@ -67,6 +67,7 @@ def greedy_placement(
     coverage_range: float,
     comm_range: float | None = None,
     link_margin: float = 0.05,
+    wall_margin: float = 0.0,
 ) -> np.ndarray:
     """
     Hover spots chosen greedily for maximum coverage: among the centres of the map's cells, pick one spot at a time
@@ -83,9 +84,14 @@ def greedy_placement(
     :param comm_range: R, the link range, or None to ignore connectivity
     :param link_margin: linked spots are at most ``comm_range - link_margin`` apart, so that the float rounding of
         the flights there cannot put two UAVs just out of range
+    :param wall_margin: only cell centres at least this far from every wall are candidates (0: all of them); a
+        margin keeps the UAVs away from where a gust can throw them against the boundary, at a cost in coverage
     :return: (n_uavs, 2) spots
     """
     centres = np.arange(map_size, dtype=np.float64) + 0.5
+    centres = centres[(centres >= wall_margin) & (map_size - centres >= wall_margin)]
+    if len(centres) == 0:
+        raise ValueError(f"wall_margin={wall_margin!r} leaves no cell centre of a {map_size} x {map_size} map as a spot")
     xx, yy = np.meshgrid(centres, centres, indexing="xy")
     candidates = np.stack([xx.ravel(), yy.ravel()], axis=1)  # (C, 2)
     diff = candidates[:, None, :] - np.asarray(pois, dtype=np.float64)[None, :, :]
@@ -171,17 +177,27 @@ class GreedyStaticController:
 
     :param name: label in tables and figures
     :param connected: keep the spots within communication range of each other where possible
+    :param wall_margin: only spots at least this far from every wall (0: anywhere); on an env with wind gusts a
+        margin trades coverage for fewer crashes
     """
 
-    def __init__(self, name: str = "greedy_static", connected: bool = True) -> None:
+    def __init__(self, name: str = "greedy_static", connected: bool = True, wall_margin: float = 0.0) -> None:
+        if isinstance(wall_margin, bool) or not isinstance(wall_margin, int | float) or not 0.0 <= wall_margin < 1e6:
+            raise ValueError(f"wall_margin must be a number >= 0, got {wall_margin!r}")
         self.name = name
         self.connected = connected
+        self.wall_margin = float(wall_margin)
         self.targets: np.ndarray | None = None
 
     def reset(self, env: ParallelEnv, seed: int | None = None) -> None:
         core = _core(env)
         spots = greedy_placement(
-            core.pois, core.n_uavs, core.map_size, core.coverage_range, core.comm_range if self.connected else None
+            core.pois,
+            core.n_uavs,
+            core.map_size,
+            core.coverage_range,
+            core.comm_range if self.connected else None,
+            wall_margin=self.wall_margin,
         )
         self.targets = assign_targets(core.positions, spots)
 

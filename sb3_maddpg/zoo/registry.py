@@ -171,4 +171,7 @@ TMC2020_KWARGS: dict[str, Any] = {
     "obs_size": 20,
 }
 register_multiagent_env("uav_coverage_tmc_v1", "sb3_maddpg_envs.uav_coverage_v1:parallel_env", TMC2020_KWARGS)
+# The hazardous task on the CPU variant: wind gusts that crash a UAV near a wall and radio links that fail
+# (uav_coverage_v1.HAZARDS), where the risk-neutral and the risk-averse optimum differ (docs/environment.md, "Hazards").
+register_multiagent_env("uav_coverage_hazard_cpu_v1", "sb3_maddpg_envs.uav_coverage_v1:hazard_parallel_env", {"obs_size": 16})
 register_multiagent_env("simple_spread_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": True})

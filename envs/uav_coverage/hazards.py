@@ -1,0 +1,93 @@
+"""
+Hazards a team can avoid at a cost (all off by default): wind gusts that push a UAV by a heavy-tailed distance, and
+crash it when they throw it against the boundary, and radio links that fail at random.
+
+They make rare losses of energy, of connectivity and of coverage (the source report's motivation for CVaR) depend on
+where the team flies: a UAV near a wall is the one a gust can crash, a UAV with a single neighbour is the one a link
+failure cuts off. Keeping a margin costs coverage on average and buys a better worst case.
+
+Shapes (N UAVs): ``positions`` (N, 2) float64, ``active`` (N,) bool, ``links`` (N, N) bool. The random numbers are
+passed in (drawn by the core from the env's own generator, a fixed number per step), so every function here is a
+pure array function that can be checked by hand.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["HAZARD_COUNTS", "crash_drain", "gust_push", "push_within_walls", "surviving_links"]
+
+#: The per-agent hazard counters in the infos (only when a hazard is switched on).
+HAZARD_COUNTS = ("gusts", "crashes", "link_failures", "depletions")
+
+_TWO_PI = 2.0 * math.pi
+
+
+def gust_push(
+    draws: np.ndarray, active: np.ndarray, *, gust_prob: float, gust_scale: float, gust_tail: float, map_size: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """
+    The gusts of one step.
+
+    UAV i is hit when u_i0 < p_g; the gust has the Lomax (Pareto II) distance d_i = s ((1 - u_i1)^(-1/a) - 1), so
+    P(d > x) = (1 + x / s)^(-a): median s (2^(1/a) - 1), and a tail that falls only as x^(-a). Its direction is
+    phi_i = 2 pi u_i2. The distance is capped at 2 L, beyond which any push leaves the area anyway.
+
+    :param draws: (N, 3) uniform draws in [0, 1): (hit, distance, direction)
+    :param active: (N,) bool, only active UAVs are hit
+    :param gust_prob: p_g, the probability that a UAV is hit at a step
+    :param gust_scale: s, the distance scale
+    :param gust_tail: a, the tail index (smaller: heavier tail)
+    :param map_size: L
+    :return: hit (N,) bool and the push (N, 2), zero where not hit
+    """
+    hit = active & (draws[:, 0] < gust_prob)
+    distance = np.minimum(gust_scale * ((1.0 - draws[:, 1]) ** (-1.0 / gust_tail) - 1.0), 2.0 * map_size)
+    angle = _TWO_PI * draws[:, 2]
+    push = np.where(hit[:, None], distance[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1), 0.0)
+    return hit, push
+
+
+def push_within_walls(positions: np.ndarray, push: np.ndarray, hit: np.ndarray, map_size: int) -> np.ndarray:
+    """
+    Move the UAVs hit by a gust, in place; one pushed out of [0, L)^2 stops at the boundary (a crash).
+
+    :param positions: (N, 2), updated in place
+    :param push: (N, 2) the gusts' displacements
+    :param hit: (N,) bool, the UAVs hit
+    :param map_size: L
+    :return: crashed (N,) bool
+    """
+    target = positions + push
+    inside = ((target >= 0.0) & (target < map_size)).all(axis=1)
+    positions[hit] = np.clip(target[hit], 0.0, np.nextafter(float(map_size), 0.0))
+    return hit & ~inside
+
+
+def crash_drain(crashed: np.ndarray, energy_left: np.ndarray, crash_energy: float) -> np.ndarray:
+    """
+    Energy a crash costs: E_c for each crashed UAV, never more than it has left.
+
+    :param crashed: (N,) bool
+    :param energy_left: (N,) energy after this step's own flight
+    :param crash_energy: E_c
+    :return: (N,) float64
+    """
+    return np.where(crashed, np.minimum(crash_energy, energy_left), 0.0)
+
+
+def surviving_links(links: np.ndarray, draws: np.ndarray, link_failure_prob: float) -> np.ndarray:
+    """
+    The links that work this step: each link fails on its own with probability p_f, the same for both ends.
+
+    A UAV with one neighbour is then cut off with probability p_f, one with k neighbours with p_f^k.
+
+    :param links: (N, N) bool, symmetric, the links in range (``dynamics.linked``)
+    :param draws: (N, N) uniform draws in [0, 1); the one above the diagonal, (min(i, j), max(i, j)), decides link i-j
+    :param link_failure_prob: p_f
+    :return: (N, N) bool, symmetric
+    """
+    failed = np.triu(draws < link_failure_prob, k=1)
+    return links & ~(failed | failed.T)

@@ -1,0 +1,77 @@
+"""
+The risk-neutral and the risk-averse optimum of the hazardous task differ, before any training: two hand-made
+policies on ``uav_coverage_hazard_cpu_v1``, both the greedy static placement (fly to greedy maximum-coverage spots
+and hover, ``GreedyStaticController``), one with its spots anywhere (``hug_walls``: the greedy spots lie 2.5 cells
+from the walls, where a gust can throw a UAV out) and one keeping a margin of 3.5 cells from every wall
+(``keep_margin``: less coverage, fewer crashes). The first should have the better mean team return, the second the
+better worst decile (the mean of the worst 10 % of the episodes).
+
+    taskset -c 1 python experiments/hazard_policies.py --episodes 200 --out experiments/results/2026-12-04-hazard
+
+It prints the table of ``python -m sb3_maddpg evaluate`` (mean ± std, worst decile, hazard events per episode) and
+writes ``results.csv``, ``results.json``, ``episodes.csv`` and ``results.md`` into ``--out``.
+"""
+
+import argparse
+import sys
+from typing import Any
+
+from sb3_maddpg.evaluation.baselines import GreedyStaticController
+from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
+from sb3_maddpg.zoo.registry import make_multiagent_env
+
+ENV_ID = "uav_coverage_hazard_cpu_v1"
+#: How far from every wall the cautious placement keeps its spots, in cells.
+MARGIN = 3.5
+
+
+def policies(margin: float = MARGIN) -> list[GreedyStaticController]:
+    """The two hand-made policies: the greedy placement anywhere, and the greedy placement keeping ``margin``."""
+    return [GreedyStaticController("hug_walls"), GreedyStaticController("keep_margin", wall_margin=margin)]
+
+
+def compare(n_episodes: int, seed: int = 0, margin: float = MARGIN, **env_kwargs: Any) -> dict[str, Any]:
+    """
+    Run both policies on the same ``n_episodes`` episodes (episode e has seed ``seed + e``: the same starts and the
+    same gusts while the UAVs are in the same places).
+
+    :param n_episodes: episodes per policy
+    :param seed: seed of the first episode
+    :param margin: the cautious policy's wall margin
+    :param env_kwargs: over the registered env's (``start`` is ``"random"`` already, v1's default)
+    :return: ``results`` (policy -> per-episode metrics) and ``summary`` (rows of ``summarize``)
+    """
+    results, _ = evaluate_controllers(
+        lambda: make_multiagent_env(ENV_ID, **env_kwargs), policies(margin), n_episodes, seed=seed
+    )
+    return {"results": results, "summary": summarize(results)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--episodes", type=int, default=200, help="episodes per policy")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode")
+    parser.add_argument("--margin", type=float, default=MARGIN, help="the cautious policy's wall margin (cells)")
+    parser.add_argument("--out", default=None, help="folder for the results files (none written without it)")
+    args = parser.parse_args(argv)
+    report = compare(args.episodes, args.seed, args.margin)
+    summary = {row["method"]: row for row in report["summary"]}
+    print(f"{ENV_ID}, {args.episodes} episodes per policy, seeds {args.seed}..{args.seed + args.episodes - 1}")
+    print(format_table(report["summary"]))
+    if args.out:
+        metadata = {"env_id": ENV_ID, "n_episodes": args.episodes, "seed": args.seed, "margin": args.margin}
+        metadata["command"] = " ".join(["python", *sys.argv])
+        write_results(args.out, report["results"], report["summary"], metadata)
+        print(f"written to {args.out}")
+    hug, margin = summary["hug_walls"], summary["keep_margin"]
+    differ = hug["return_mean"] > margin["return_mean"] and hug["return_worst_decile"] < margin["return_worst_decile"]
+    print(
+        f"mean: hug_walls {hug['return_mean']:.1f}, keep_margin {margin['return_mean']:.1f}; "
+        f"worst decile: hug_walls {hug['return_worst_decile']:.1f}, keep_margin {margin['return_worst_decile']:.1f}; "
+        f"the optima {'differ' if differ else 'do NOT differ'}"
+    )
+    return 0 if differ else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

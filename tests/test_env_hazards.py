@@ -1,0 +1,220 @@
+"""The hazards (wind gusts, crashes, link failures): formulas against values worked out by hand, the argument checks,
+the hazardous env id (PettingZoo API, seeding) and the defaults left unchanged."""
+
+import numpy as np
+import pytest
+from pettingzoo.test import parallel_api_test, parallel_seed_test
+
+from sb3_maddpg.evaluation.baselines import GreedyStaticController, greedy_placement
+from sb3_maddpg.zoo.registry import make_multiagent_env
+from sb3_maddpg_envs import uav_coverage_v1
+from sb3_maddpg_envs.uav_coverage.core import UAVCoverageCore
+from sb3_maddpg_envs.uav_coverage.hazards import crash_drain, gust_push, push_within_walls, surviving_links
+
+HOVER = [0.5, 0.5]  # v1's Cartesian action that hovers
+
+
+class ScriptedDraws:
+    """Stands in for the env's generator: returns the given arrays, in order, and checks their shapes."""
+
+    def __init__(self, *draws: np.ndarray) -> None:
+        self.draws = [np.asarray(draw, dtype=np.float64) for draw in draws]
+
+    def random(self, shape):
+        draw = self.draws.pop(0)
+        assert draw.shape == tuple(shape)
+        return draw
+
+
+class NoDraws:
+    def random(self, *args, **kwargs):
+        raise AssertionError("a hazard that is off drew a random number")
+
+
+def core_with(start, draws, **kwargs) -> UAVCoverageCore:
+    core = UAVCoverageCore(**{**uav_coverage_v1.V1_DEFAULTS, "obs_size": 16, "start": start, "n_uavs": len(start), **kwargs})
+    core.reset(seed=0)
+    core._rng = ScriptedDraws(*draws)
+    return core
+
+
+# --- the formulas ---------------------------------------------------------------------------------------------------
+def test_gust_distance_is_lomax_and_direction_uniform():
+    # (1 - 0.875)^(-1/3) = 8^(1/3) = 2: d = s (2 - 1) = 2 with s = 2; direction 2 pi 0.5 = pi: push (-2, 0)
+    # (1 - 0.999)^(-1/3) = 10: d = 0.5 (10 - 1) = 4.5 with s = 0.5 is not drawn for s = 2 here: d = 2 * 9 = 18,
+    # direction 2 pi 0.25: push (0, 18); UAV 2 is not hit (0.5 >= p_g), UAV 3 is inactive
+    draws = np.array([[0.01, 0.875, 0.5], [0.02, 0.999, 0.25], [0.5, 0.875, 0.0], [0.0, 0.875, 0.0]])
+    active = np.array([True, True, True, False])
+    hit, push = gust_push(draws, active, gust_prob=0.03, gust_scale=2.0, gust_tail=3.0, map_size=16)
+    np.testing.assert_array_equal(hit, [True, True, False, False])
+    np.testing.assert_allclose(push, [[-2.0, 0.0], [0.0, 18.0], [0.0, 0.0], [0.0, 0.0]], atol=1e-12)
+
+
+def test_gust_distance_is_capped_at_twice_the_map():
+    # a = 0.5: (1 - 0.99)^-2 = 10 000, d = 9 999 > 2 L = 32
+    hit, push = gust_push(
+        np.array([[0.0, 0.99, 0.0]]), np.array([True]), gust_prob=1.0, gust_scale=1.0, gust_tail=0.5, map_size=16
+    )
+    np.testing.assert_allclose(push, [[32.0, 0.0]])
+
+
+def test_a_gust_out_of_the_area_stops_at_the_wall_and_crashes():
+    positions = np.array([[1.0, 5.0], [3.0, 3.0], [5.0, 15.0], [0.5, 0.5]])
+    push = np.array([[-1.5, 0.0], [1.0, 0.0], [0.0, 2.0], [-3.0, -3.0]])
+    hit = np.array([True, True, True, False])
+    crashed = push_within_walls(positions, push, hit, 16)
+    np.testing.assert_array_equal(crashed, [True, False, True, False])
+    # (1, 5) - 1.5 -> x = -0.5, stopped at 0; (5, 15) + 2 -> y = 17, stopped just below 16; UAV 3 was not hit
+    np.testing.assert_allclose(positions, [[0.0, 5.0], [4.0, 3.0], [5.0, 16.0], [0.5, 0.5]])
+    assert positions[2, 1] < 16.0
+
+
+def test_crash_drain_never_more_than_what_is_left():
+    np.testing.assert_allclose(crash_drain(np.array([True, True, False]), np.array([100.0, 30.0, 100.0]), 50.0), [50, 30, 0])
+
+
+def test_link_failures_cut_off_a_uav_with_one_neighbour():
+    # a chain 0 - 1 - 2: link 0-1 fails (draw 0.1 < 0.5), link 1-2 holds (0.9); the draws below the diagonal and the
+    # one of 0-2 (out of range) change nothing
+    links = np.array([[False, True, False], [True, False, True], [False, True, False]])
+    draws = np.array([[0.0, 0.1, 0.1], [0.0, 0.0, 0.9], [0.0, 0.0, 0.0]])
+    working = surviving_links(links, draws, 0.5)
+    np.testing.assert_array_equal(working, [[False, False, False], [False, False, True], [False, True, False]])
+    np.testing.assert_array_equal(working, working.T)
+
+
+# --- one step of the core -------------------------------------------------------------------------------------------
+def test_gust_step_crash_energy_penalties_and_rewards():
+    # Two hovering UAVs at (1, 8) and (8, 8), each hit by a gust of d = 2 (s = 2, a = 3, u = 0.875): UAV 0 westwards
+    # to x = -1, stopped at x = 0 (a crash), UAV 1 eastwards to (10, 8).
+    core = core_with(
+        [[1.0, 8.0], [8.0, 8.0]],
+        [[[0.0, 0.875, 0.5], [0.0, 0.875, 0.0]]],
+        gust_prob=1.0,
+        gust_scale=2.0,
+        gust_tail=3.0,
+        crash_energy=50.0,
+    )
+    _, rewards, _, _ = core.step(np.array([HOVER, HOVER]))
+    np.testing.assert_allclose(core.positions, [[0.0, 8.0], [10.0, 8.0]])
+    np.testing.assert_allclose(core.last_gust, [[-2.0, 0.0], [2.0, 0.0]], atol=1e-12)
+    np.testing.assert_array_equal(core.last_crashed, [True, False])
+    # Energy: hovering E_h = 0.5 each, plus E_c = 50 for the crash
+    np.testing.assert_allclose(core.last_energy_spent, [50.5, 0.5])
+    np.testing.assert_allclose(core.energy, [449.5, 499.5])
+    # Penalties: p_w = 1 (v1) for the crash; 10 cells apart > R = 6, both disconnected: p_c = 0.1 each
+    np.testing.assert_allclose(core.last_penalties, [1.1, 0.1])
+    # Rewards: (N / K) x PoIs covered (18 from x = 0: 7 + 5 + 5 + 1 over x = 0..3; a full disc 29), each worth 1 at
+    # t = 1, minus 0.5 e / (eta l_max) = 0.5 e, minus the penalties
+    np.testing.assert_allclose(rewards, [2 / 256 * 18 - 25.25 - 1.1, 2 / 256 * 29 - 0.25 - 0.1])
+    assert core.wall_hits.tolist() == [0, 0]  # a crash is counted apart from the UAV's own wall hits
+    info = core.infos()[0]
+    assert (info["gusts"], info["crashes"], info["link_failures"], info["depletions"]) == (1, 1, 0, 0)
+
+
+def test_a_crash_can_deplete_a_uav():
+    core = core_with(
+        [[1.0, 8.0], [4.0, 8.0]],
+        [[[0.0, 0.875, 0.5], [0.9, 0.0, 0.0]]],
+        gust_prob=0.5,
+        gust_scale=2.0,
+        gust_tail=3.0,
+        crash_energy=50.0,
+        max_energy=10.0,
+    )
+    core.step(np.array([HOVER, HOVER]))
+    # 0.5 hovering, then min(50, 10 - 0.5) = 9.5: nothing left
+    np.testing.assert_allclose(core.last_energy_spent, [10.0, 0.5])
+    assert core.active.tolist() == [False, True]
+    assert [info["depletions"] for info in core.infos()] == [1, 0]
+    assert [info["gusts"] for info in core.infos()] == [1, 0]
+
+
+def test_link_failure_step_disconnects_the_uav_with_one_neighbour():
+    start = [[4.0, 8.0], [8.0, 8.0], [12.0, 8.0]]
+    draws = np.array([[0.0, 0.1, 0.1], [0.0, 0.0, 0.9], [0.0, 0.0, 0.0]])
+    core = core_with(start, [draws], link_failure_prob=0.5)
+    core.step(np.array([HOVER] * 3))
+    np.testing.assert_array_equal(core.last_disconnected, [True, False, False])
+    np.testing.assert_allclose(core.last_penalties, [0.1, 0.0, 0.0])
+    assert [info["link_failures"] for info in core.infos()] == [1, 0, 0]
+    assert core.disconnections.tolist() == [1, 0, 0]
+    # The links drawn in the observations are those in range: a failure lasts one step
+    assert core.links().tolist() == [[0, 1], [1, 2]]
+
+
+def test_hazards_off_draw_nothing_and_leave_the_infos_as_they_were():
+    core = UAVCoverageCore(**{**uav_coverage_v1.V1_DEFAULTS, "obs_size": 16, "crash_energy": 50.0})
+    core.reset(seed=0)
+    core._rng = NoDraws()
+    core.step(np.full((6, 2), 0.7))
+    assert not core.hazards
+    assert set(core.infos()[0]) == {"coverage", "fairness", "energy", "energy_efficiency", "wall_hits", "disconnections"}
+
+
+# --- argument checks ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "name, value",
+    [
+        ("gust_prob", -0.1),
+        ("gust_prob", 1.5),
+        ("gust_prob", "often"),
+        ("gust_prob", float("nan")),
+        ("gust_scale", 0.0),
+        ("gust_scale", -1.0),
+        ("gust_tail", 0.4),
+        ("gust_tail", True),
+        ("crash_energy", -1.0),
+        ("crash_energy", float("inf")),
+        ("link_failure_prob", 1.0),
+        ("link_failure_prob", -0.01),
+        ("link_failure_prob", None),
+    ],
+)
+def test_bad_hazard_values_are_refused_with_their_name(name, value):
+    with pytest.raises(ValueError, match=f"{name} must"):
+        UAVCoverageCore(obs_size=16, **{name: value})
+
+
+def test_wall_margin_checks():
+    pois = np.array([[1.0, 1.0]])
+    with pytest.raises(ValueError, match="wall_margin=9 leaves no cell centre"):
+        greedy_placement(pois, 2, 16, 3.0, wall_margin=9)
+    with pytest.raises(ValueError, match="wall_margin must be a number >= 0"):
+        GreedyStaticController(wall_margin=-1.0)
+    # margin 3.5 on 16 x 16: only the centres 3.5 ... 12.5 are candidates
+    spots = greedy_placement(np.argwhere(np.ones((16, 16))).astype(float), 6, 16, 3.0, 6.0, wall_margin=3.5)
+    assert spots.min() >= 3.5 and spots.max() <= 12.5
+
+
+# --- the hazardous env id -------------------------------------------------------------------------------------------
+def test_hazard_env_id_switches_the_hazards_on():
+    env = make_multiagent_env("uav_coverage_hazard_cpu_v1")
+    core = env.core
+    assert (core.gust_prob, core.gust_scale, core.gust_tail, core.crash_energy, core.link_failure_prob) == tuple(
+        uav_coverage_v1.HAZARDS[key] for key in ("gust_prob", "gust_scale", "gust_tail", "crash_energy", "link_failure_prob")
+    )
+    assert env.observation_space("uav_0").shape == (4, 16, 16) and core.action_mode == "cartesian"
+
+
+def test_hazard_env_parallel_api():
+    parallel_api_test(make_multiagent_env("uav_coverage_hazard_cpu_v1", n_uavs=3, max_cycles=40), num_cycles=60)
+
+
+def test_hazard_env_parallel_seed():
+    parallel_seed_test(lambda: make_multiagent_env("uav_coverage_hazard_cpu_v1", n_uavs=3, gust_prob=0.3), num_cycles=30)
+
+
+def test_hazard_episodes_are_reproducible_from_the_seed():
+    def play(seed):
+        env = make_multiagent_env("uav_coverage_hazard_cpu_v1", gust_prob=0.3, max_cycles=30)
+        env.reset(seed=seed)
+        rng = np.random.default_rng(0)
+        returns = 0.0
+        while env.agents:
+            _, rewards, _, _, infos = env.step({agent: rng.random(2) for agent in env.agents})
+            returns += sum(rewards.values())
+        return returns, [(info["gusts"], info["crashes"], info["link_failures"]) for info in infos.values()]
+
+    assert play(3) == play(3)
+    assert play(3) != play(4)

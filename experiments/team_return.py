@@ -1,6 +1,7 @@
 """
 Mean team return of saved models (and of uniformly random actions) on a registered multi-agent env: the measure of
-the MPE comparisons in docs/results.md. One JSON line per model.
+the MPE comparisons in docs/results.md. One JSON line per model. Box or Discrete actions (random actions: uniform in
+the box, or uniform integers).
 
     python experiments/team_return.py --env simple_spread_v3 --episodes 20 --seed 1000 \
         runs/matd3/logs/*/simple_spread_v3_*/simple_spread_v3.zip
@@ -14,6 +15,7 @@ import argparse
 import json
 
 import numpy as np
+from gymnasium import spaces
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
 from sb3_maddpg.zoo import registry  # noqa: F401  (registers the env ids)
@@ -45,8 +47,12 @@ def main() -> None:
     env_kwargs = json.loads(args.env_kwargs)
     rng = np.random.default_rng(args.seed)
     probe = make_multiagent_vec_env(lambda: make_multiagent_env(args.env, **env_kwargs), n_envs=1, seed=0)
-    low, high = probe.action_space.low, probe.action_space.high
-    controllers = {"random": lambda obs: rng.uniform(low, high, (len(obs), *low.shape)).astype(np.float32)}
+    space = probe.action_space
+    if isinstance(space, spaces.Discrete):  # uniform integers, one per agent row
+        controllers = {"random": lambda obs: space.start + rng.integers(space.n, size=len(obs))}
+    else:
+        low, high = space.low, space.high
+        controllers = {"random": lambda obs: rng.uniform(low, high, (len(obs), *low.shape)).astype(np.float32)}
     for path in args.models:
         model = MADDPG.load(path, device="cpu")  # a MATD3 model loads as well: the same networks act
         controllers[path] = lambda obs, model=model: model.predict(obs, deterministic=True)[0]

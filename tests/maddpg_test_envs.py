@@ -118,3 +118,28 @@ class CountingImageEnv(ParallelEnv):
         if done:
             self.agents = []
         return obs, rewards, terms, truncs, infos
+
+
+class DiscreteTargetReachEnv(TargetReachEnv):
+    """
+    ``TargetReachEnv`` with MPE's ``Discrete(5)`` moves instead of a Box: 0 stays, 1 to 4 move 0.3 left, right,
+    down, up. ``step`` refuses anything but an integer of the space, so tests see what the env receives.
+
+    :param n_agents: number of agents
+    :param max_cycles: episode length
+    """
+
+    MOVES = np.array([[0.0, 0.0], [-1.0, 0.0], [1.0, 0.0], [0.0, -1.0], [0.0, 1.0]])
+    metadata = {"render_modes": [], "name": "discrete_target_reach_v0"}
+
+    def __init__(self, n_agents: int = 2, max_cycles: int = 5):
+        super().__init__(n_agents=n_agents, max_cycles=max_cycles)
+
+    def action_space(self, agent):
+        return spaces.Discrete(5)
+
+    def step(self, actions):
+        for agent, action in actions.items():
+            if not isinstance(action, int | np.integer) or not 0 <= action < 5:
+                raise TypeError(f"{agent} got the action {action!r} ({type(action).__name__}), not an integer in [0, 5)")
+        return super().step({agent: self.MOVES[action] for agent, action in actions.items()})

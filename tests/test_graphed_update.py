@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 import torch as th
-from maddpg_test_envs import CountingImageEnv, TargetReachEnv
+from maddpg_test_envs import CountingImageEnv, DiscreteTargetReachEnv, TargetReachEnv
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
 from sb3_maddpg.common.graphed_update import GraphedUpdate, make_capturable
@@ -15,8 +15,8 @@ needs_cuda = pytest.mark.skipif(not th.cuda.is_available(), reason="needs a CUDA
 STEP_KINDS = dict(critic_warmup_steps=4, policy_delay=2, target_policy_noise=0.2, max_grad_norm=5.0, actor_reg=1e-3)
 
 
-def make_model(policy: str, device: str = "cpu", **kwargs) -> MADDPG:
-    env_cls = TargetReachEnv if policy == "MlpPolicy" else CountingImageEnv
+def make_model(policy: str, device: str = "cpu", discrete: bool = False, **kwargs) -> MADDPG:
+    env_cls = (DiscreteTargetReachEnv if discrete else TargetReachEnv) if policy == "MlpPolicy" else CountingImageEnv
     venv = make_multiagent_vec_env(env_cls, n_envs=2, seed=0, env_kwargs=dict(n_agents=3))
     model = MADDPG(
         policy,
@@ -53,9 +53,10 @@ def assert_same_networks(a: MADDPG, b: MADDPG, atol: float) -> None:
         assert th.allclose(state_a[key].float().cpu(), state_b[key].float().cpu(), atol=atol, rtol=1e-5), key
 
 
-@pytest.mark.parametrize("policy", ["MlpPolicy", "CnnPolicy"])
-def test_graph_code_path_computes_the_eager_update_on_cpu(policy):
-    eager, graphed = make_model(policy), make_model(policy)
+@pytest.mark.parametrize(("policy", "discrete"), [("MlpPolicy", False), ("CnnPolicy", False), ("MlpPolicy", True)])
+def test_graph_code_path_computes_the_eager_update_on_cpu(policy, discrete):
+    # discrete: Gumbel-softmax actors, whose Gumbel noise is drawn inside the step
+    eager, graphed = make_model(policy, discrete=discrete), make_model(policy, discrete=discrete)
     assert_same_networks(eager, graphed, atol=0.0)
     # The graph's code path, run without recording: static batch tensors, capturable optimizers, tensor learning
     # rates. The eager model gets the same capturable optimizers, so any difference would come from the code path.

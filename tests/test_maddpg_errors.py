@@ -10,9 +10,9 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
 
 
-class DiscreteActionEnv(TargetReachEnv):
+class MultiDiscreteActionEnv(TargetReachEnv):
     def action_space(self, agent):
-        return spaces.Discrete(4)
+        return spaces.MultiDiscrete([4, 2])
 
 
 class MixedActionEnv(TargetReachEnv):
@@ -25,11 +25,12 @@ def raw_supersuit_env(env, n_envs=1):
     return ss.concat_vec_envs_v1(ss.pettingzoo_env_to_vec_env_v1(env), n_envs, base_class="stable_baselines3")
 
 
-def test_discrete_action_space():
-    with pytest.raises(TypeError, match="Box"):
-        make_multiagent_vec_env(DiscreteActionEnv)
-    with pytest.raises(TypeError, match=r"Box \(continuous\) action spaces"):
-        MADDPG("MlpPolicy", raw_supersuit_env(DiscreteActionEnv()), n_agents=2)
+def test_multidiscrete_action_space():
+    # Box and Discrete are accepted (tests/test_discrete_actions.py); MultiDiscrete is not, yet
+    with pytest.raises(TypeError, match="MultiDiscrete .* is not supported yet"):
+        make_multiagent_vec_env(MultiDiscreteActionEnv)
+    with pytest.raises(TypeError, match=r"Box \(continuous\) and Discrete action spaces; MultiDiscrete"):
+        MADDPG("MlpPolicy", raw_supersuit_env(MultiDiscreteActionEnv()), n_agents=2)
 
 
 def test_agents_with_different_spaces():

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from maddpg_test_envs import TargetReachEnv
+from maddpg_test_envs import DiscreteTargetReachEnv, TargetReachEnv
 
 from sb3_maddpg import MADDPG, MATD3, make_multiagent_vec_env
 from sb3_maddpg.common.noise import DecayingGaussianNoise
@@ -42,11 +42,16 @@ def episode_end_coverage(env_fn, env_kwargs: dict, act, n_episodes: int = 8) -> 
     return float(np.mean(coverage[:n_episodes]))
 
 
-@pytest.mark.parametrize(("algorithm", "cvar_alpha", "seed"), [(MADDPG, 1.0, 0), (MADDPG, 0.25, 1), (MATD3, 1.0, 0)])
-def test_mlp_policy_beats_random_on_cooperative_target_reaching(algorithm, cvar_alpha, seed):
-    """Risk-neutral (alpha = 1) and risk-averse (alpha = 0.25) critics both learn the cooperative task; MATD3 too."""
+def returns_against_random(algorithm, env_cls, seed: int, random_actions, **model_kwargs) -> tuple[float, float]:
+    """
+    Train on ``env_cls`` (2 agents, 2 copies) for 2 000 timesteps, then the mean team returns of random actions and of
+    the trained model on the same 20 evaluation episodes.
+
+    :param random_actions: (generator, number of rows) -> the random actions of the rows
+    :return: the random and the trained team return
+    """
     kwargs = dict(n_agents=2)
-    venv = make_multiagent_vec_env(TargetReachEnv, n_envs=2, seed=seed, env_kwargs=kwargs)
+    venv = make_multiagent_vec_env(env_cls, n_envs=2, seed=seed, env_kwargs=kwargs)
     model = algorithm(
         "MlpPolicy",
         venv,
@@ -54,23 +59,51 @@ def test_mlp_policy_beats_random_on_cooperative_target_reaching(algorithm, cvar_
         batch_size=64,
         buffer_size=20_000,
         gamma=0.9,
-        cvar_alpha=cvar_alpha,
-        action_noise=DecayingGaussianNoise(np.zeros(2), sigma=0.5, final_sigma=0.1, decay=0.999),
         policy_kwargs=dict(n_quantiles=10),
         seed=seed,
+        **model_kwargs,
     )
     model.learn(2_000)
 
     rng = np.random.default_rng(seed)
     eval_seed = 100 * (seed + 1)
-    eval_env = make_multiagent_vec_env(TargetReachEnv, n_envs=4, seed=eval_seed, env_kwargs=kwargs)
-    random_return = mean_episode_return(eval_env, lambda obs: rng.uniform(-1, 1, (len(obs), 2)).astype(np.float32))
-    eval_env = make_multiagent_vec_env(TargetReachEnv, n_envs=4, seed=eval_seed, env_kwargs=kwargs)
+    eval_env = make_multiagent_vec_env(env_cls, n_envs=4, seed=eval_seed, env_kwargs=kwargs)
+    random_return = mean_episode_return(eval_env, lambda obs: random_actions(rng, len(obs)))
+    eval_env = make_multiagent_vec_env(env_cls, n_envs=4, seed=eval_seed, env_kwargs=kwargs)
     trained_return = mean_episode_return(eval_env, lambda obs: model.predict(obs, deterministic=True)[0])
+    return random_return, trained_return
+
+
+@pytest.mark.parametrize(("algorithm", "cvar_alpha", "seed"), [(MADDPG, 1.0, 0), (MADDPG, 0.25, 1), (MATD3, 1.0, 0)])
+def test_mlp_policy_beats_random_on_cooperative_target_reaching(algorithm, cvar_alpha, seed):
+    """Risk-neutral (alpha = 1) and risk-averse (alpha = 0.25) critics both learn the cooperative task; MATD3 too."""
+    random_return, trained_return = returns_against_random(
+        algorithm,
+        TargetReachEnv,
+        seed,
+        lambda rng, rows: rng.uniform(-1, 1, (rows, 2)).astype(np.float32),
+        cvar_alpha=cvar_alpha,
+        action_noise=DecayingGaussianNoise(np.zeros(2), sigma=0.5, final_sigma=0.1, decay=0.999),
+    )
     name = algorithm.__name__
     print(f"\n{name} CVaR_{cvar_alpha}: team return over 20 episodes: random {random_return:.2f}, {name} {trained_return:.2f}")
     # Returns are negative distances: the random policy ends about 9 below zero; a clear margin is half of that
     assert trained_return > random_return + 0.5 * abs(random_return)
+
+
+@pytest.mark.parametrize(("algorithm", "seed"), [(MADDPG, 0), (MATD3, 1)])
+def test_discrete_actors_beat_random_on_target_reaching(algorithm, seed):
+    """
+    The same task with Discrete(5) moves: the straight-through Gumbel-softmax actors, exploring by sampling their
+    logits, beat uniformly random moves (MATD3's target smoothing does not apply to one-hot actions).
+    """
+    random_return, trained_return = returns_against_random(
+        algorithm, DiscreteTargetReachEnv, seed, lambda rng, rows: rng.integers(0, 5, rows)
+    )
+    name = algorithm.__name__
+    print(f"\n{name} discrete: team return over 20 episodes: random {random_return:.2f}, {name} {trained_return:.2f}")
+    # Measured: random about -9.3, trained about -4.3; a clear margin is a third of the random return
+    assert trained_return > random_return + abs(random_return) / 3
 
 
 @pytest.mark.xfail(

@@ -72,16 +72,16 @@ class MixedSpacesEnv(TargetReachEnv):
         return spaces.Box(-1.0, 1.0, (4 if agent == "agent_0" else 5,), np.float32)
 
 
-class DiscreteActionEnv(TargetReachEnv):
+class MultiDiscreteActionEnv(TargetReachEnv):
     def action_space(self, agent):
-        return spaces.Discrete(4)
+        return spaces.MultiDiscrete([4, 2])
 
 
 def test_unsupported_envs_get_clear_errors():
     with pytest.raises(ValueError, match="share one observation space"):
         make_multiagent_vec_env(MixedSpacesEnv)
-    with pytest.raises(TypeError, match="Box"):
-        make_multiagent_vec_env(DiscreteActionEnv)
+    with pytest.raises(TypeError, match="MultiDiscrete"):
+        make_multiagent_vec_env(MultiDiscreteActionEnv)
     with pytest.raises(TypeError, match="ParallelEnv"):
         make_multiagent_vec_env(lambda: object())
     with pytest.raises(ValueError, match="n_envs"):

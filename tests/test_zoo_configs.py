@@ -22,6 +22,7 @@ SMALL_ENV_KWARGS = {
     "uav_coverage_v0": dict(obs_size=16, max_cycles=10, n_uavs=2),
     "uav_coverage_fast_v0": dict(max_cycles=10, n_uavs=2),
     "simple_spread_v3": dict(continuous_actions=True, max_cycles=10),
+    "simple_spread_discrete_v3": dict(max_cycles=10),
     # obs_size stays the registered 20: the CNN must fit the paper setting's images
     "uav_coverage_tmc_v1": dict(max_cycles=10, n_uavs=2),
 }

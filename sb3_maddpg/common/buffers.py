@@ -13,6 +13,8 @@ from gymnasium import spaces
 from stable_baselines3.common.buffers import BaseBuffer, ReplayBuffer
 from stable_baselines3.common.vec_env import VecNormalize
 
+from sb3_maddpg.common.actions import action_width, is_discrete, one_hot
+
 try:
     import psutil
 except ImportError:  # pragma: no cover
@@ -52,7 +54,8 @@ class MultiAgentReplayBufferSamples(NamedTuple):
     A batch of B joint transitions (N agents each).
 
     - observations: (B, N, *obs_shape), in the observation dtype (uint8 images stay uint8)
-    - actions: (B, N, action_dim), rescaled to [-1, 1] as SB3 stores them
+    - actions: (B, N, action_dim), rescaled to [-1, 1] as SB3 stores them; for ``Discrete(n)`` actions, one-hot
+      vectors (B, N, n)
     - next_observations: (B, N, *obs_shape)
     - dones: (B, 1), 1.0 where the episode terminated (truncations removed when ``handle_timeout_termination``)
     - rewards: (B, N)
@@ -73,7 +76,9 @@ class MultiAgentReplayBuffer(ReplayBuffer):
     row = copy * N + agent); the buffer stores them as joint transitions in arrays with named dimensions:
 
     - ``observations``: (buffer_size, n_copies, n_agents, *obs_shape), observation dtype
-    - ``actions``: (buffer_size, n_copies, n_agents, action_dim)
+    - ``actions``: (buffer_size, n_copies, n_agents, action_dim); for a ``Discrete(n)`` action space, one-hot
+      vectors of width n (float32): ``add`` takes the integers and stores their one-hot vectors (or takes the one-hot
+      vectors), so the critics read the stored actions as they are
     - ``rewards``: (buffer_size, n_copies, n_agents)
     - ``dones``, ``timeouts``: (buffer_size, n_copies), one flag per joint step of a copy
 
@@ -100,7 +105,7 @@ class MultiAgentReplayBuffer(ReplayBuffer):
 
     :param buffer_size: maximum number of joint transitions
     :param observation_space: one agent's observation space (a Box)
-    :param action_space: one agent's action space
+    :param action_space: one agent's action space (a Box, or a Discrete stored as one-hot vectors)
     :param device: PyTorch device of the sampled tensors
     :param n_envs: number of VecEnv rows, ``n_copies * n_agents``
     :param optimize_memory_usage: accepted for SB3 compatibility; the buffer always derives next observations
@@ -132,8 +137,8 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         name = type(self).__name__
         if not isinstance(observation_space, spaces.Box):
             raise TypeError(f"{name} accepts a Box observation space, got {observation_space}")
-        if not isinstance(action_space, spaces.Box):
-            raise TypeError(f"{name} accepts a Box action space, got {action_space}")
+        if not isinstance(action_space, spaces.Box | spaces.Discrete):
+            raise TypeError(f"{name} accepts a Box or Discrete action space, got {action_space}")
         if n_agents < 1 or n_envs % n_agents != 0:
             raise ValueError(
                 f"n_envs (VecEnv rows) must be a positive multiple of n_agents >= 1, got n_envs={n_envs}, n_agents={n_agents}"
@@ -147,6 +152,10 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         self.handle_timeout_termination = handle_timeout_termination
         self._obs_np_dtype = np.dtype(observation_space.dtype)
         self._action_np_dtype = np.dtype(self._maybe_cast_dtype(action_space.dtype))
+        if is_discrete(action_space):
+            # One-hot vectors, as the critics read them (SB3 stores the integer, action_dim 1)
+            self.action_dim = action_width(action_space)
+            self._action_np_dtype = np.dtype(np.float32)
         self._check_memory()
 
         slots, copies, agents = self.buffer_size, self.n_copies, self.n_agents
@@ -244,7 +253,8 @@ class MultiAgentReplayBuffer(ReplayBuffer):
 
         :param obs: (n_copies * n_agents, *obs_shape) in SB3's row layout
         :param next_obs: (n_copies * n_agents, *obs_shape); rows that ended an episode hold the terminal observation
-        :param action: (n_copies * n_agents, action_dim)
+        :param action: (n_copies * n_agents, action_dim); for a Discrete action space, the integers
+            (n_copies * n_agents,) or their one-hot vectors (n_copies * n_agents, n)
         :param reward: (n_copies * n_agents,)
         :param done: (n_copies * n_agents,) episode ended (terminated or truncated)
         :param infos: one dict per row; ``TimeLimit.truncated`` marks truncations
@@ -252,7 +262,10 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         copies, agents = self.n_copies, self.n_agents
         obs = np.asarray(obs).reshape(copies, agents, *self.obs_shape).astype(self._obs_np_dtype, copy=False)
         next_obs = np.asarray(next_obs).reshape(copies, agents, *self.obs_shape).astype(self._obs_np_dtype, copy=False)
-        action = np.asarray(action).reshape(copies, agents, self.action_dim).astype(self._action_np_dtype, copy=False)
+        action = np.asarray(action)
+        if is_discrete(self.action_space) and action.size == copies * agents and action.dtype.kind in "iu":
+            action = one_hot(action, self.action_space)  # type: ignore[arg-type]
+        action = action.reshape(copies, agents, self.action_dim).astype(self._action_np_dtype, copy=False)
         reward = np.asarray(reward).reshape(copies, agents).astype(np.float32, copy=False)
         copy_done = np.asarray(done).reshape(copies, agents).any(axis=1)
         truncated = np.array([info.get("TimeLimit.truncated", False) for info in infos], dtype=bool)

@@ -34,12 +34,12 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList, Conve
 from stable_baselines3.common.noise import ActionNoise, VectorizedActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.preprocessing import get_action_dim
 from stable_baselines3.common.save_util import open_path
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
 from stable_baselines3.common.utils import should_collect_more_steps
 from stable_baselines3.common.vec_env import VecEnv
 
+from sb3_maddpg.common.actions import SUPPORTED_ACTION_SPACES, action_width, is_discrete
 from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
@@ -126,7 +126,8 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         with a single environment copy, ``(2, "episode")``
     :param gradient_steps: gradient steps after each rollout; -1 does as many as timesteps collected
     :param action_noise: exploration noise added to the actions rescaled to [-1, 1]; None gives the decaying Gaussian
-        noise (``DecayingGaussianNoise``: standard deviation 1.0 decaying towards 0.1)
+        noise (``DecayingGaussianNoise``: standard deviation 1.0 decaying towards 0.1); Box actions only (Discrete
+        actions explore by sampling the actors' logits)
     :param replay_buffer_class: replay buffer class (``MultiAgentReplayBuffer`` or a subclass; by default
         ``DeviceReplayBuffer`` when ``replay_buffer_kwargs`` name a ``storage_device``, else ``MultiAgentReplayBuffer``)
     :param replay_buffer_kwargs: keyword arguments of the replay buffer
@@ -210,7 +211,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
             device=device,
             seed=seed,
             sde_support=False,
-            supported_action_spaces=(spaces.Box,),
+            supported_action_spaces=SUPPORTED_ACTION_SPACES,
             support_multi_env=True,
         )
         storage = self.replay_buffer_kwargs.get("storage_device")
@@ -277,6 +278,11 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         """
         if action_noise is None:
             return
+        if is_discrete(self.action_space):
+            raise ValueError(
+                f"action_noise applies to continuous (Box) actions; with {self.action_space} actions the rollouts explore "
+                "by sampling the actors' logits (Gumbel-max): leave action_noise=None"
+            )
         action_shape = tuple(self.action_space.shape)  # type: ignore[arg-type]
         if isinstance(action_noise, VectorizedActionNoise):
             if action_noise.n_envs != n_rows:
@@ -390,7 +396,8 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         if self.replay_buffer is None and self.env is not None:
             self._make_replay_buffer()
 
-        if self.action_noise is None:
+        # Discrete actions explore by sampling the actors' logits, without action noise
+        if self.action_noise is None and not is_discrete(self.action_space):
             action_dim = int(np.prod(self.action_space.shape))
             self.action_noise = DecayingGaussianNoise(mean=np.zeros(action_dim), sigma=1.0, final_sigma=0.1)
 
@@ -455,6 +462,9 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         As ``OffPolicyAlgorithm._sample_action`` (random actions before ``learning_starts``, then the actors plus
         the exploration noise, clipped to [-1, 1]), with the actors' [-1, 1] outputs used as they are: SB3 goes
         through ``predict``, which maps them to the action space's bounds, and maps them back at once.
+        Discrete actions take SB3's own path: uniform integers before ``learning_starts``, then ``predict`` with
+        ``deterministic=False`` (a Gumbel-max sample of each actor's logits) and no action noise; the buffer
+        stores the integers as one-hot vectors.
 
         :param learning_starts: timesteps of random actions before learning starts
         :param action_noise: exploration noise added to the actors' outputs
@@ -758,7 +768,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
             raise TypeError(f"{name} holds a {type(buffer).__name__}, not a MultiAgentReplayBuffer of joint transitions")
         assert self.n_agents is not None
         obs_shape, obs_dtype = tuple(self.observation_space.shape), self.observation_space.dtype  # type: ignore[arg-type]
-        action_dim = get_action_dim(self.action_space)
+        action_dim = action_width(self.action_space)
         buffer_dtype = np.dtype(buffer.observation_space.dtype)  # type: ignore[arg-type]
         found = (buffer.n_agents, tuple(buffer.obs_shape), buffer_dtype, buffer.action_dim)
         if found != (self.n_agents, obs_shape, obs_dtype, action_dim):

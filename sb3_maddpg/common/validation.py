@@ -15,6 +15,8 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
+from sb3_maddpg.common.actions import check_action_space, check_gumbel_temperature, is_discrete
+
 
 def check_int(name: str, value: Any, minimum: int | None = None) -> int:
     """
@@ -180,8 +182,13 @@ def check_off_policy_arguments(algorithm: str, arguments: dict[str, Any]) -> Non
             f"{algorithm} takes an SB3 VecEnv with one row per agent, not a PettingZoo ParallelEnv: "
             "wrap it with sb3_maddpg.make_multiagent_vec_env(env_fn, n_envs=...)"
         )
-    if env is not None and not isinstance(env, str) and not isinstance(env.action_space, spaces.Box):
-        raise TypeError(f"{algorithm} accepts Box (continuous) action spaces, got {env.action_space}")
+    if env is not None and not isinstance(env, str):
+        check_action_space(env.action_space, algorithm)
+        if is_discrete(env.action_space) and arguments["action_noise"] is not None:
+            raise ValueError(
+                f"action_noise applies to continuous (Box) actions; with {env.action_space} actions {algorithm} explores "
+                "by sampling its actors' logits (Gumbel-max): leave action_noise=None"
+            )
     if env is not None and not isinstance(env, str) and not isinstance(env.observation_space, spaces.Box):
         raise TypeError(f"{algorithm} accepts Box observation spaces (vectors or images), got {env.observation_space}")
     learning_rate = arguments["learning_rate"]
@@ -245,6 +252,7 @@ def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
     actor_reg = arguments["actor_reg"]
     if isinstance(actor_reg, bool) or not isinstance(actor_reg, int | float) or not actor_reg >= 0.0:
         raise ValueError(f"actor_reg must be a number >= 0 (0 turns the penalty off), got {actor_reg!r}")
+    check_gumbel_temperature(arguments["gumbel_temperature"])
     check_bool("cuda_graph", arguments["cuda_graph"])
     check_bool("bf16_autocast", arguments["bf16_autocast"])
     check_int("policy_delay", arguments["policy_delay"], 1)

@@ -16,10 +16,13 @@ from pettingzoo.utils.wrappers import BaseParallelWrapper
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecEnvWrapper
 from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, VecEnvIndices, VecEnvStepReturn
 
+from sb3_maddpg.common.actions import check_action_space
 
-def check_multiagent_spaces(parallel_env: ParallelEnv) -> tuple[spaces.Box, spaces.Box]:
+
+def check_multiagent_spaces(parallel_env: ParallelEnv) -> tuple[spaces.Box, spaces.Box | spaces.Discrete]:
     """
-    Check that every agent of a ParallelEnv has the same Box observation space and the same Box action space.
+    Check that every agent of a ParallelEnv has the same Box observation space and the same Box or Discrete action
+    space.
 
     :param parallel_env: the environment
     :return: the shared observation space and action space
@@ -31,8 +34,7 @@ def check_multiagent_spaces(parallel_env: ParallelEnv) -> tuple[spaces.Box, spac
     act_space = parallel_env.action_space(agents[0])
     if not isinstance(obs_space, spaces.Box):
         raise TypeError(f"MADDPG accepts Box observation spaces (vectors or images), got {obs_space} for {agents[0]!r}")
-    if not isinstance(act_space, spaces.Box):
-        raise TypeError(f"MADDPG accepts Box (continuous) action spaces, got {act_space} for {agents[0]!r}")
+    check_action_space(act_space, f"MADDPG (agent {agents[0]!r})")
     for agent in agents[1:]:
         if parallel_env.observation_space(agent) != obs_space or parallel_env.action_space(agent) != act_space:
             raise ValueError(
@@ -612,7 +614,8 @@ def make_multiagent_vec_env(
 
     The VecEnv has ``n_envs * n_agents`` rows, agent-major inside each copy (row = copy * n_agents + agent), and the
     attributes ``n_agents``, ``n_copies`` and ``possible_agents``. See ``MultiAgentVecEnv`` for seeding, infos and
-    episode statistics. All agents must share one Box observation space and one Box action space.
+    episode statistics. All agents must share one Box observation space and one action space, Box or Discrete (a
+    Discrete env receives one integer per row).
 
     :param env_fn: function returning a PettingZoo ParallelEnv, e.g. ``uav_coverage_v0.parallel_env``
     :param n_envs: number of environment copies

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from typing import Any, Protocol
 
 import numpy as np
+from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 
@@ -38,8 +39,8 @@ class Controller(Protocol):
 
 class RandomController:
     """
-    Uniform random actions in every agent's Box action space (in the UAV env: [0, 1]^2, a random direction and
-    distance): the lower baseline.
+    Uniform random actions in every agent's action space: in a Box (in the UAV env: [0, 1]^2, a random direction
+    and distance) or a Discrete one (uniform integers): the lower baseline.
 
     :param name: label in tables and figures
     """
@@ -55,6 +56,9 @@ class RandomController:
         actions = {}
         for agent in observations:
             space = env.action_space(agent)
+            if isinstance(space, spaces.Discrete):
+                actions[agent] = np.int64(space.start + self.rng.integers(space.n))
+                continue
             draw = space.low + (space.high - space.low) * self.rng.random(space.shape, dtype=np.float64)
             actions[agent] = draw.astype(space.dtype)
         return actions
@@ -373,7 +377,11 @@ class ModelController:
         agents = [agent for agent in env.possible_agents if agent in observations]
         batch = np.stack([observations[agent] for agent in agents])
         actions, _ = self.model.predict(batch, deterministic=self.deterministic)
-        return {agent: np.asarray(action, dtype=np.float32) for agent, action in zip(agents, actions, strict=True)}
+        # In each agent's action dtype: float32 in a Box, integers in a Discrete space
+        return {
+            agent: np.asarray(action, dtype=env.action_space(agent).dtype)
+            for agent, action in zip(agents, actions, strict=True)
+        }
 
 
 #: The baselines by name, as ``evaluate --baselines`` takes them.

@@ -12,6 +12,7 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.common.utils import FloatSchedule, get_parameters_by_name
 
+from sb3_maddpg.common.actions import straight_through_gumbel_softmax
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.distributional import cvar, quantile_huber_loss
 from sb3_maddpg.common.graphed_update import GraphedUpdate, set_learning_rate
@@ -36,8 +37,10 @@ class GradientStepStats(NamedTuple):
     q_mean: th.Tensor  # mean quantile of the batch's joint actions
     cvar: th.Tensor  # CVaR_alpha of the batch's joint actions
     actor_loss: th.Tensor | None = None
-    actor_saturation: th.Tensor | None = None  # the fraction of actor outputs within 1 % of a bound
-    actor_preactivation: th.Tensor | None = None  # the mean |pre-tanh output|
+    # the fraction of actor outputs within 1 % of a bound; for Discrete actions, of observations whose most likely
+    # action has a probability above 0.99 (the actor has stopped exploring there)
+    actor_saturation: th.Tensor | None = None
+    actor_preactivation: th.Tensor | None = None  # the mean |pre-tanh output| (|logit| for Discrete actions)
 
 
 class MADDPG(MultiAgentOffPolicyAlgorithm):
@@ -51,6 +54,16 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
     quantile critics: QR-DQN, Dabney et al. 2018, https://arxiv.org/abs/1710.10044). With several critic networks per
     agent (``policy_kwargs=dict(n_critics=2)``, what ``MATD3`` does) the target takes the smaller of the target
     networks' values at each quantile level.
+
+    **Discrete actions** (a ``Discrete(n)`` action space, e.g. MPE2's default) follow the MADDPG paper's
+    Gumbel-softmax: each actor outputs n logits; the env receives integers; the critics and the replay buffer see
+    one-hot vectors. The actor loss scores the straight-through Gumbel-softmax sample (one-hot forward, the gradient
+    of softmax((logits + g) / ``gumbel_temperature``)); the rollouts explore by sampling softmax(logits) (Gumbel-max)
+    instead of adding ``action_noise``, which is refused; random actions before ``learning_starts`` are uniform
+    integers; ``predict(deterministic=True)`` gives the argmax. The target actors give the one-hot argmax: the
+    target then values the greedy policy that ``predict`` deploys, like DDPG's deterministic target, without the
+    variance of a sampled target action. Target policy smoothing (``target_policy_noise``, MATD3's 0.2) is not
+    applied to one-hot actions: Gaussian noise on a one-hot vector gives inputs that no stored action resembles.
 
     The environment is an SB3 VecEnv with one row per agent and copy, row = copy * n_agents + agent
     (see ``make_multiagent_vec_env``); the team, the timestep (one joint step of one environment copy), the rollout
@@ -70,7 +83,8 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         with a single environment copy, ``(2, "episode")``
     :param gradient_steps: gradient steps after each rollout; -1 does as many as timesteps collected
     :param action_noise: exploration noise added to the actions rescaled to [-1, 1]; None gives the decaying Gaussian
-        noise (``DecayingGaussianNoise``: standard deviation 1.0 decaying towards 0.1)
+        noise (``DecayingGaussianNoise``: standard deviation 1.0 decaying towards 0.1); Box actions only (Discrete
+        actions explore by sampling the actors' logits)
     :param replay_buffer_class: replay buffer class (default ``MultiAgentReplayBuffer``)
     :param replay_buffer_kwargs: keyword arguments of the replay buffer
     :param cvar_alpha: CVaR level alpha in (0, 1] of the actor objective; 1 is risk-neutral (the mean)
@@ -87,6 +101,10 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
     :param target_policy_noise: standard deviation of the Gaussian noise added to the target actors' actions in the
         critic targets (TD3's target policy smoothing; 0, the default, turns it off as in MADDPG)
     :param target_noise_clip: limit of the absolute value of that noise
+    :param gumbel_temperature: temperature (> 0) of the straight-through Gumbel-softmax of the actor update with
+        Discrete actions: lower makes the soft sample whose gradient is used closer to the one-hot sample (less
+        biased, noisier gradient), higher smoother; it changes neither the sampled actions nor anything with Box
+        actions (default 1.0, as in the MADDPG paper's code)
     :param share_actor: one actor shared by all agents instead of one actor per agent
     :param cuda_graph: capture each kind of gradient step (critics only; critics, actors and targets) as a CUDA
         graph on its first use and replay it afterwards: one launch per update instead of hundreds of kernel
@@ -140,6 +158,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         max_grad_norm: float | None = None,
         target_policy_noise: float = 0.0,
         target_noise_clip: float = 0.5,
+        gumbel_temperature: float = 1.0,
         share_actor: bool = False,
         cuda_graph: bool = False,
         bf16_autocast: bool = False,
@@ -163,6 +182,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
                 max_grad_norm=max_grad_norm,
                 target_policy_noise=target_policy_noise,
                 target_noise_clip=target_noise_clip,
+                gumbel_temperature=gumbel_temperature,
                 share_actor=share_actor,
                 cuda_graph=cuda_graph,
                 bf16_autocast=bf16_autocast,
@@ -199,6 +219,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         self.max_grad_norm = None if max_grad_norm is None else float(max_grad_norm)
         self.target_policy_noise = float(target_policy_noise)
         self.target_noise_clip = float(target_noise_clip)
+        self.gumbel_temperature = float(gumbel_temperature)
         self.share_actor = share_actor
         if cuda_graph and self.device.type != "cuda":
             raise ValueError(
@@ -256,14 +277,16 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         """
         with th.no_grad():
             # Target distribution (SPEC 2): r_i + gamma (1 - d) Z_i'(o', a'), a'_j = mu_j'(o'_j) from the target actors
-            # The target critics encode o' once; target actors that read the critics' encoders reuse them
+            # (for Discrete actions the one-hot argmax). The target critics encode o' once; target actors that read
+            # the critics' encoders reuse them
             next_features = self.critic_target.encode(replay_data.next_observations)  # (B, N, F)
             if self.actor_target.reads_critic_features:
-                next_actions = th.tanh(self.actor_target.preactivations_from_features(next_features))
+                next_actions = self.actor_target.squash(self.actor_target.preactivations_from_features(next_features))
             else:
                 next_actions = self.actor_target(replay_data.next_observations)  # (B, N, A)
-            if self.target_policy_noise > 0.0:
-                # TD3's target policy smoothing: the target is the critic's value around the target action
+            if self.target_policy_noise > 0.0 and not self.actor_target.discrete:
+                # TD3's target policy smoothing: the target is the critic's value around the target action (not for
+                # one-hot actions, which have no neighbourhood the critic has seen)
                 noise = next_actions.new_empty(next_actions.shape).normal_(0.0, self.target_policy_noise)
                 noise = noise.clamp(-self.target_noise_clip, self.target_noise_clip)
                 next_actions = (next_actions + noise).clamp(-1.0, 1.0)
@@ -285,7 +308,9 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
     ) -> th.Tensor:
         """
         Per-agent actor loss: -CVaR_alpha(Z_i(o, a)) where a_i = mu_i(o_i) and a_j (j != i) come from the batch,
-        plus ``actor_reg`` times the mean squared pre-tanh output of actor i.
+        plus ``actor_reg`` times the mean squared pre-tanh output of actor i. For Discrete actions a_i is the
+        straight-through Gumbel-softmax sample of actor i's logits, and the penalty is on the logits (as in the MADDPG
+        authors' code).
 
         :param replay_data: a batch of joint transitions
         :param features: critic-side encodings of ``replay_data.observations``, (B, N, F) (treated as constants)
@@ -295,7 +320,11 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         """
         if preactivations is None:
             preactivations = self.actor.preactivations(replay_data.observations)  # (B, N, A)
-        policy_actions = th.tanh(preactivations)
+        if self.actor.discrete:
+            # MADDPG paper, discrete actions: one-hot forward, the gradient of the relaxed sample (Gumbel-softmax)
+            policy_actions = straight_through_gumbel_softmax(preactivations, self.gumbel_temperature)
+        else:
+            policy_actions = th.tanh(preactivations)
         # Critic i scores the batch's joint action with a_i = mu_i(o_i) in place of the batch's a_i
         quantiles = self.critic.quantiles_with_own_actions(features, replay_data.actions, policy_actions)  # (B, N, n_q)
         regularisation = preactivations.float().pow(2).mean(dim=(0, 2))  # (N,)
@@ -356,10 +385,15 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             self.actor.optimizer.step()
             with th.no_grad():
                 preactivations = preactivations.detach().float()
+                if self.actor.discrete:
+                    # A (nearly) deterministic categorical policy no longer explores where it is
+                    saturated = (th.softmax(preactivations, dim=-1).amax(dim=-1) > 0.99).float().mean(dim=0)
+                else:
+                    # Saturation: where tanh passes (almost) no gradient, an actor can get stuck at a bound
+                    saturated = (preactivations.abs() > _SATURATED_PREACTIVATION).float().mean(dim=(0, 2))
                 stats = stats._replace(
                     actor_loss=actor_loss.detach(),
-                    # Saturation: where tanh passes (almost) no gradient, an actor can get stuck at a bound
-                    actor_saturation=(preactivations.abs() > _SATURATED_PREACTIVATION).float().mean(dim=(0, 2)),
+                    actor_saturation=saturated,
                     actor_preactivation=preactivations.abs().mean(dim=(0, 2)),
                 )
 

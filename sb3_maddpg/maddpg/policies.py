@@ -5,11 +5,11 @@ from typing import Any
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.preprocessing import get_action_dim
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, FlattenExtractor, get_actor_critic_arch
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
+from sb3_maddpg.common.actions import action_width, check_action_space, gumbel_max_sample, is_discrete, one_hot_argmax
 from sb3_maddpg.common.torch_layers import BatchedMlp, MultiAgentFeatures, ReportCNN
 from sb3_maddpg.common.validation import check_policy_arguments
 
@@ -19,8 +19,12 @@ class MultiAgentActor(nn.Module):
     Decentralised deterministic actors: agent i's action is mu_i(o_i), squashed by tanh into [-1, 1]
     (the policy rescales it to the action space). All agents are evaluated together.
 
+    With a ``Discrete(n)`` action space each actor outputs n logits instead (its "preactivations"), and its action
+    for the critics is a one-hot vector: the argmax's here (``forward``, ``squash``), the straight-through
+    Gumbel-softmax sample in the actor update, a Gumbel-max sample when exploring (``sb3_maddpg.common.actions``).
+
     :param observation_space: one agent's observation space
-    :param action_space: one agent's action space
+    :param action_space: one agent's action space (Box, or Discrete)
     :param n_agents: number of agents N
     :param net_arch: hidden layer sizes of each actor
     :param activation_fn: activation function
@@ -37,7 +41,7 @@ class MultiAgentActor(nn.Module):
     def __init__(
         self,
         observation_space: spaces.Box,
-        action_space: spaces.Box,
+        action_space: spaces.Box | spaces.Discrete,
         n_agents: int,
         net_arch: list[int],
         activation_fn: type[nn.Module],
@@ -49,6 +53,7 @@ class MultiAgentActor(nn.Module):
     ) -> None:
         super().__init__()
         self.n_agents = n_agents
+        self.discrete = is_discrete(action_space)
         self.reads_critic_features = critic_features is not None
         if critic_features is None:
             self.features = MultiAgentFeatures(
@@ -65,7 +70,7 @@ class MultiAgentActor(nn.Module):
         self.mu = BatchedMlp(
             1 if shared else n_agents,
             self.features.features_dim,
-            get_action_dim(action_space),
+            action_width(action_space),
             net_arch,
             activation_fn,
         )
@@ -73,7 +78,7 @@ class MultiAgentActor(nn.Module):
     def preactivations(self, observations: th.Tensor) -> th.Tensor:
         """
         :param observations: (B, N, *obs_shape)
-        :return: the actions before the tanh squashing, (B, N, action_dim)
+        :return: the actions before the tanh squashing, (B, N, action_dim); the logits (B, N, n) for Discrete(n)
         """
         if self.reads_critic_features:
             # The critic's encodings are the actor's input, not its parameters: no gradient flows back into them
@@ -92,12 +97,23 @@ class MultiAgentActor(nn.Module):
         """
         return self.mu(features)
 
+    def squash(self, preactivations: th.Tensor) -> th.Tensor:
+        """
+        The deterministic actions, as the critics read them, from the actors' outputs.
+
+        :param preactivations: (B, N, action_dim) from ``preactivations``
+        :return: their tanh, in [-1, 1]; for Discrete actions, the one-hot vectors of the logits' argmax
+        """
+        if self.discrete:
+            return one_hot_argmax(preactivations)
+        return th.tanh(preactivations)
+
     def forward(self, observations: th.Tensor) -> th.Tensor:
         """
         :param observations: (B, N, *obs_shape)
-        :return: actions in [-1, 1], (B, N, action_dim)
+        :return: actions in [-1, 1], (B, N, action_dim); one-hot vectors (B, N, n) for Discrete(n)
         """
-        return th.tanh(self.preactivations(observations))
+        return self.squash(self.preactivations(observations))
 
 
 class MultiAgentQuantileCritic(nn.Module):
@@ -116,7 +132,7 @@ class MultiAgentQuantileCritic(nn.Module):
     as SB3's ``q1_forward``; ``all_quantiles`` returns every network's.
 
     :param observation_space: one agent's observation space
-    :param action_space: one agent's action space
+    :param action_space: one agent's action space (a Discrete(n) one is read as one-hot vectors of width n)
     :param n_agents: number of agents N
     :param n_quantiles: number of quantiles per critic
     :param net_arch: hidden layer sizes of each critic
@@ -130,7 +146,7 @@ class MultiAgentQuantileCritic(nn.Module):
     def __init__(
         self,
         observation_space: spaces.Box,
-        action_space: spaces.Box,
+        action_space: spaces.Box | spaces.Discrete,
         n_agents: int,
         n_quantiles: int,
         net_arch: list[int],
@@ -147,7 +163,7 @@ class MultiAgentQuantileCritic(nn.Module):
         self.features = MultiAgentFeatures(
             observation_space, n_agents, features_extractor_class, features_extractor_kwargs, normalize_images
         )
-        self.action_dim = get_action_dim(action_space)
+        self.action_dim = action_width(action_space)
         input_dim = n_agents * (self.features.features_dim + self.action_dim)
         self.quantile_nets = BatchedMlp(n_critics * n_agents, input_dim, n_quantiles, net_arch, activation_fn)
         # The first network of each agent: models 0 .. N-1
@@ -249,10 +265,11 @@ class MADDPGPolicy(BasePolicy):
     Policy of MADDPG: decentralised actors, centralised quantile critics and their target networks.
 
     ``predict`` takes SB3's row layout, (n_copies * N, *obs_shape) with row = copy * N + agent, and gives row r
-    the action of actor r mod N.
+    the action of actor r mod N. With a ``Discrete`` action space it returns integers: the argmax of the actor's
+    logits with ``deterministic=True``, a sample of their softmax (Gumbel-max) otherwise.
 
     :param observation_space: one agent's observation space (a Box)
-    :param action_space: one agent's action space (a Box)
+    :param action_space: one agent's action space (a Box, or a Discrete)
     :param lr_schedule: learning rate schedule
     :param n_agents: number of agents N
     :param share_actor: one actor for all agents instead of one per agent
@@ -298,8 +315,7 @@ class MADDPGPolicy(BasePolicy):
     ) -> None:
         if not isinstance(observation_space, spaces.Box):
             raise TypeError(f"MADDPGPolicy accepts a Box observation space (vector or image), got {observation_space}")
-        if not isinstance(action_space, spaces.Box):
-            raise TypeError(f"MADDPGPolicy accepts a Box (continuous) action space, got {action_space}")
+        check_action_space(action_space, "MADDPGPolicy")
         check_policy_arguments(
             n_agents,
             share_actor,
@@ -322,7 +338,8 @@ class MADDPGPolicy(BasePolicy):
             features_extractor_kwargs,
             optimizer_class=optimizer_class,
             optimizer_kwargs=optimizer_kwargs,
-            squash_output=True,
+            # The tanh output is rescaled to a Box's bounds; Discrete actions are integers
+            squash_output=isinstance(action_space, spaces.Box),
             normalize_images=normalize_images,
         )
         if net_arch is None:
@@ -411,10 +428,12 @@ class MADDPGPolicy(BasePolicy):
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         """
-        Actions of SB3's rows (deterministic: ``deterministic`` is ignored, exploration noise is added outside).
+        Actions of SB3's rows. Box actions: deterministic (``deterministic`` is ignored, exploration noise is added
+        outside). Discrete actions: the argmax of the logits with ``deterministic``, else a Gumbel-max sample of their
+        softmax (the exploration of the rollouts).
 
         :param observation: (R, *obs_shape) with R a multiple of N, row r belonging to agent r mod N
-        :return: actions in [-1, 1], (R, action_dim)
+        :return: actions in [-1, 1], (R, action_dim); for Discrete actions the integers (R,)
         """
         assert isinstance(observation, th.Tensor)
         n_rows = observation.shape[0]
@@ -424,6 +443,10 @@ class MADDPGPolicy(BasePolicy):
                 f"row = copy * n_agents + agent), got {n_rows} rows"
             )
         joint = observation.view(n_rows // self.n_agents, self.n_agents, *observation.shape[1:])
+        if self.actor.discrete:
+            logits = self.actor.preactivations(joint).reshape(n_rows, -1)
+            indices = logits.argmax(dim=-1) if deterministic else gumbel_max_sample(logits)
+            return indices + int(self.action_space.start)  # type: ignore[attr-defined]
         return self.actor(joint).reshape(n_rows, -1)
 
     def set_training_mode(self, mode: bool) -> None:

@@ -27,7 +27,8 @@ class MATD3(MADDPG):
        TD3's ``q1_forward``.
     2. **Delayed actors and targets**: updated once every ``policy_delay`` (2) critic updates.
     3. **Target policy smoothing**: Gaussian noise of standard deviation ``target_policy_noise`` (0.2), clipped to
-       ``target_noise_clip`` (0.5), on the target actors' actions in the critic targets.
+       ``target_noise_clip`` (0.5), on the target actors' actions in the critic targets. With Discrete actions it
+       is not applied (the targets are one-hot vectors; see ``MADDPG``): MATD3 is then the twin critics and the delay.
 
     As SB3's ``DDPG`` is ``TD3`` with other defaults, this class is ``MADDPG`` with TD3's defaults and twin-critic
     policies: MADDPG computes its critic targets for any number of critic networks per agent. The signature is
@@ -68,6 +69,7 @@ class MATD3(MADDPG):
         max_grad_norm: float | None = None,
         target_policy_noise: float = 0.2,
         target_noise_clip: float = 0.5,
+        gumbel_temperature: float = 1.0,
         share_actor: bool = False,
         cuda_graph: bool = False,
         bf16_autocast: bool = False,
@@ -102,6 +104,7 @@ class MATD3(MADDPG):
             max_grad_norm=max_grad_norm,
             target_policy_noise=target_policy_noise,
             target_noise_clip=target_noise_clip,
+            gumbel_temperature=gumbel_temperature,
             share_actor=share_actor,
             cuda_graph=cuda_graph,
             bf16_autocast=bf16_autocast,

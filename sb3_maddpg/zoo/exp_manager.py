@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 import optuna
+from gymnasium import spaces
 from rl_zoo3.exp_manager import ExperimentManager
 from rl_zoo3.hyperparams_opt import HYPERPARAMS_CONVERTER
 from rl_zoo3.utils import ALGOS, get_wrapper_class
@@ -377,6 +378,11 @@ class MultiAgentExperimentManager(ExperimentManager):
     ) -> dict[str, Any]:
         # RL Zoo knows "normal" and "ornstein-uhlenbeck"; "decaying-normal" is the report's schedule
         # (noise_std decaying geometrically towards noise_final_std by noise_decay per timestep).
+        if "noise_type" in hyperparams and isinstance(env.action_space, spaces.Discrete):
+            raise UsageError(
+                f"noise_type applies to continuous (Box) actions; {self.env_name.gym_id} has {env.action_space} actions, "
+                f"which explore by sampling the actors' logits: remove noise_type and the noise settings (in {self.config})"
+            )
         if hyperparams.get("noise_type") == DECAYING_NOISE:
             from sb3_maddpg.common.noise import DecayingGaussianNoise
 

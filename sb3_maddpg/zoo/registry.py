@@ -91,7 +91,8 @@ def register_multiagent_env(
     """
     Make a PettingZoo ``ParallelEnv`` usable with ``--env env_id`` in ``train``, ``enjoy`` and ``optimize``.
 
-    Its agents must share one Box observation space and one Box action space (what MADDPG's VecEnv needs).
+    Its agents must share one Box observation space and one action space, Box or Discrete (what MADDPG's VecEnv
+    needs).
     Registering an id again replaces it.
 
     :param env_id: the id, also the key of its YAML entry
@@ -175,3 +176,6 @@ register_multiagent_env("uav_coverage_tmc_v1", "sb3_maddpg_envs.uav_coverage_v1:
 # (uav_coverage_v1.HAZARDS), where the risk-neutral and the risk-averse optimum differ (docs/environment.md, "Hazards").
 register_multiagent_env("uav_coverage_hazard_cpu_v1", "sb3_maddpg_envs.uav_coverage_v1:hazard_parallel_env", {"obs_size": 16})
 register_multiagent_env("simple_spread_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": True})
+# The same task with MPE2's default Discrete(5) actions (no-op, left, right, down, up), as in the MADDPG paper: the
+# actors learn through the straight-through Gumbel-softmax (docs/algorithm.md, "Discrete actions").
+register_multiagent_env("simple_spread_discrete_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": False})

@@ -76,6 +76,9 @@ for config in fast_small fast_small_b32; do
   POLICY[$config]="{\"n_quantiles\": 1, $small_encoder}"
 done
 ALGO[fast_small]="${ALGO[exact_tpn005_g09]}"; ALGO[fast_small_b32]="${ALGO[fast_shared_small_b32]}"
+# The sharing with the report's encoder and batch 32
+ENV[fast_shared_b32]=uav_coverage_cpu_v1; ENV_KWARGS[fast_shared_b32]="${ENV_KWARGS[exact_tpn005_g09_mates]}"; STEPS[fast_shared_b32]=28000
+ALGO[fast_shared_b32]="${ALGO[fast_shared_small_b32]}"; POLICY[fast_shared_b32]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $encoder}"
 ENV[fast_shared]=uav_coverage_cpu_v1; ALGO[fast_shared]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
 POLICY[fast_shared]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $encoder}"; STEPS[fast_shared]=28000
 ENV[fast_shared_envs2]=uav_coverage_cpu_v1; ALGO[fast_shared_envs2]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared_envs2]="${ENV_KWARGS[exact_tpn005_g09_mates]}"

@@ -242,9 +242,26 @@ def test_train_step_changes_all_networks_and_logs_per_agent():
         assert any(not th.equal(before[k], after[k]) for k in after if k.startswith(prefix)), prefix
     logged = model.logger.name_to_value
     for name in ("agent_0", "agent_1"):
-        for key in ("critic_loss", "actor_loss", "q_mean", "cvar"):
+        for key in ("critic_loss", "actor_loss", "q_mean", "cvar", "q_spread"):
             assert np.isfinite(logged[f"train/{key}_{name}"])
     assert 0.1 <= logged["train/noise_std"] <= 1.0
+
+
+def test_step_statistics_by_hand():
+    # the logged CVaR and spread of each agent's critic on the batch, against the quantiles computed here
+    model = make_model("MlpPolicy", n_agents=2, cvar_alpha=0.5)
+    batch = hand_batch(model)
+    with th.no_grad():
+        quantiles = model.critic(batch.observations, batch.actions)  # (B, N, n_q) before the step
+    stats = model._gradient_step(batch, update_actor=False, update_targets=False)
+    assert quantiles.shape[-1] == 5
+    for i in range(2):
+        rows = quantiles[:, i].sort(dim=-1).values
+        worst = rows[:, :3].mean(dim=-1)  # CVaR_0.5 of 5 quantiles: the ceil(0.5 * 5) = 3 lowest
+        assert stats.cvar[i].item() == pytest.approx(worst.mean().item(), rel=1e-5)
+        spread = ((rows - rows.mean(dim=-1, keepdim=True)) ** 2).mean(dim=-1).sqrt()
+        assert stats.q_spread[i].item() == pytest.approx(spread.mean().item(), rel=1e-5)
+        assert stats.q_mean[i].item() == pytest.approx(rows.mean().item(), rel=1e-5, abs=1e-7)
 
 
 def test_actor_reg_adds_mean_squared_preactivation_of_each_actor():

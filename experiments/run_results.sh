@@ -66,6 +66,21 @@ for config in fast_shared_small fast_shared_small_envs2; do
   POLICY[$config]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $small_encoder}"; STEPS[$config]=28000
 done
 NENVS[fast_shared_small_envs2]=2
+# The same with batch 32 (the report's) instead of 64
+ENV[fast_shared_small_b32]=uav_coverage_cpu_v1; ENV_KWARGS[fast_shared_small_b32]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
+ALGO[fast_shared_small_b32]="${ALGO[exact_tpn005_g09]/\"batch_size\": 64/\"batch_size\": 32}"
+POLICY[fast_shared_small_b32]="${POLICY[fast_shared_small]}"; STEPS[fast_shared_small_b32]=28000
+# The small encoder without the sharing (actors with encoders of their own), batch 64 or 32
+for config in fast_small fast_small_b32; do
+  ENV[$config]=uav_coverage_cpu_v1; ENV_KWARGS[$config]="${ENV_KWARGS[exact_tpn005_g09_mates]}"; STEPS[$config]=28000
+  POLICY[$config]="{\"n_quantiles\": 1, $small_encoder}"
+done
+ALGO[fast_small]="${ALGO[exact_tpn005_g09]}"; ALGO[fast_small_b32]="${ALGO[fast_shared_small_b32]}"
+# The sharing with the report's encoder and batch 32
+ENV[fast_shared_b32]=uav_coverage_cpu_v1; ENV_KWARGS[fast_shared_b32]="${ENV_KWARGS[exact_tpn005_g09_mates]}"; STEPS[fast_shared_b32]=28000
+ALGO[fast_shared_b32]="${ALGO[fast_shared_small_b32]}"; POLICY[fast_shared_b32]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $encoder}"
+ENV[fast_shared]=uav_coverage_cpu_v1; ALGO[fast_shared]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
+POLICY[fast_shared]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $encoder}"; STEPS[fast_shared]=28000
 ENV[fast_shared_envs2]=uav_coverage_cpu_v1; ALGO[fast_shared_envs2]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared_envs2]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
 POLICY[fast_shared_envs2]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $encoder}"; STEPS[fast_shared_envs2]=28000; NENVS[fast_shared_envs2]=2
 

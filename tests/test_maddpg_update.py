@@ -242,9 +242,26 @@ def test_train_step_changes_all_networks_and_logs_per_agent():
         assert any(not th.equal(before[k], after[k]) for k in after if k.startswith(prefix)), prefix
     logged = model.logger.name_to_value
     for name in ("agent_0", "agent_1"):
-        for key in ("critic_loss", "actor_loss", "q_mean", "cvar"):
+        for key in ("critic_loss", "actor_loss", "q_mean", "cvar", "q_spread"):
             assert np.isfinite(logged[f"train/{key}_{name}"])
     assert 0.1 <= logged["train/noise_std"] <= 1.0
+
+
+def test_step_statistics_by_hand():
+    # the logged CVaR and spread of each agent's critic on the batch, against the quantiles computed here
+    model = make_model("MlpPolicy", n_agents=2, cvar_alpha=0.5)
+    batch = hand_batch(model)
+    with th.no_grad():
+        quantiles = model.critic(batch.observations, batch.actions)  # (B, N, n_q) before the step
+    stats = model._gradient_step(batch, update_actor=False, update_targets=False)
+    assert quantiles.shape[-1] == 5
+    for i in range(2):
+        rows = quantiles[:, i].sort(dim=-1).values
+        worst = rows[:, :3].mean(dim=-1)  # CVaR_0.5 of 5 quantiles: the ceil(0.5 * 5) = 3 lowest
+        assert stats.cvar[i].item() == pytest.approx(worst.mean().item(), rel=1e-5)
+        spread = ((rows - rows.mean(dim=-1, keepdim=True)) ** 2).mean(dim=-1).sqrt()
+        assert stats.q_spread[i].item() == pytest.approx(spread.mean().item(), rel=1e-5)
+        assert stats.q_mean[i].item() == pytest.approx(rows.mean().item(), rel=1e-5, abs=1e-7)
 
 
 def test_actor_reg_adds_mean_squared_preactivation_of_each_actor():
@@ -301,6 +318,29 @@ def test_report_cnn_channels_set_the_widths_and_the_features():
     # 16 -> 8 -> 4 -> 2 pixels with padding 1: 32 channels x 2 x 2 per agent
     assert encoder.features_dim == 32 * 2 * 2
     assert encoder(th.rand(5, 3, 4, 16, 16)).shape == (5, 3, 128)
+
+
+@pytest.mark.parametrize(("n_agents", "padding"), [(3, 1), (1, 1), (3, 0)])
+def test_coordinate_channels_act_as_if_appended_to_every_image(n_agents, padding):
+    # The encoder adds the first convolution's response to the coordinate maps once per pass instead of
+    # concatenating the maps to every image: the same outputs and weight gradients as the concatenation
+    from gymnasium import spaces
+
+    th.manual_seed(0)
+    encoder = ReportCNN(spaces.Box(0, 255, (4, 16, 16), np.uint8), n_agents=n_agents, padding=padding, coord_channels=True)
+    encoder.eval()  # compare before and after BatchNorm alike, without batch statistics
+    images = th.rand(5, n_agents, 4, 16, 16) if n_agents > 1 else th.rand(5, 4, 16, 16)
+    features = encoder(images)
+    features.sum().backward()
+    folded_grad = encoder.cnn[0].weight.grad.clone()
+    encoder.zero_grad()
+    flat = images.flatten(1, 2) if n_agents > 1 else images
+    coords = th.stack(th.meshgrid(th.linspace(0, 1, 16), th.linspace(0, 1, 16), indexing="xy"))  # column, row
+    per_agent = [th.cat([flat[:, 4 * i : 4 * i + 4], coords.expand(5, 2, 16, 16)], dim=1) for i in range(n_agents)]
+    expected = encoder.cnn(th.cat(per_agent, dim=1)).reshape(features.shape)
+    expected.sum().backward()
+    th.testing.assert_close(features, expected, rtol=1e-5, atol=1e-5)
+    th.testing.assert_close(folded_grad, encoder.cnn[0].weight.grad, rtol=1e-4, atol=1e-5)
 
 
 @pytest.mark.parametrize("policy", ["MlpPolicy", "CnnPolicy"])

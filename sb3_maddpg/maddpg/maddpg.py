@@ -36,6 +36,9 @@ class GradientStepStats(NamedTuple):
     critic_loss: th.Tensor
     q_mean: th.Tensor  # mean quantile of the batch's joint actions
     cvar: th.Tensor  # CVaR_alpha of the batch's joint actions
+    # how wide the critic's return distribution is: the mean over the batch of the quantiles' standard deviation
+    # (0 with one quantile); a risk-averse user watches it beside the CVaR
+    q_spread: th.Tensor
     actor_loss: th.Tensor | None = None
     # the fraction of actor outputs within 1 % of a bound; for Discrete actions, of observations whose most likely
     # action has a probability above 0.99 (the actor has stopped exploring there)
@@ -367,6 +370,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
                 critic_loss=critic_loss.detach(),
                 q_mean=current_quantiles.mean(dim=(0, 2)),
                 cvar=cvar(current_quantiles, self.cvar_alpha).mean(dim=0),
+                q_spread=current_quantiles.std(dim=2, correction=0).mean(dim=0),
             )
 
         if update_actor:

@@ -18,6 +18,7 @@ one core with one torch thread, and counts that process's CPU time (``time.proce
 
     python benchmarks/cpu_step_cost.py --reference 6888883 --rounds 3
     python benchmarks/cpu_step_cost.py --task uav --reference 901880e --rounds 3 --timesteps 2000 --warmup 1000
+    python benchmarks/cpu_step_cost.py --task uav --reference 901880e --override 'b32={"batch_size": 32}'
     python benchmarks/cpu_step_cost.py --timesteps 100000        # the current code only, long run
 """
 
@@ -51,8 +52,11 @@ def import_envs_from(code_dir: str) -> None:
     spec.loader.exec_module(module)
 
 
-def measure_uav(timesteps: int, warmup: int) -> dict[str, float]:
-    """The quick start's config of the code in the working directory; CPU ms per timestep after ``warmup``."""
+def measure_uav(timesteps: int, warmup: int, override: dict | None = None) -> dict[str, float]:
+    """
+    The quick start's config of the code in the working directory, with the settings of ``override`` in place of the
+    entry's (``policy_kwargs`` and ``features_extractor_kwargs`` merged key by key); CPU ms per timestep after ``warmup``.
+    """
     import numpy as np
     import torch as th
     import yaml
@@ -64,12 +68,22 @@ def measure_uav(timesteps: int, warmup: int) -> dict[str, float]:
 
     with open("zoo_configs/maddpg.yml") as file:
         config = dict(yaml.safe_load(file)[UAV_ENV])
-    n_envs = config.pop("n_envs", 1)
     env_kwargs = config.pop("env_kwargs", {})
     policy = config.pop("policy")
     # RL Zoo evaluates policy_kwargs strings as Python expressions; the YAML files hold only dict(...) literals
     policy_kwargs = eval(config.pop("policy_kwargs", "dict()"), {"dict": dict})  # noqa: S307
+    override = dict(override or {})
+    policy_override = override.pop("policy_kwargs", {})
+    extractor_override = policy_override.pop("features_extractor_kwargs", {})
+    policy_kwargs.update(policy_override)
+    if extractor_override:
+        policy_kwargs["features_extractor_kwargs"] = {
+            **policy_kwargs.get("features_extractor_kwargs", {}),
+            **extractor_override,
+        }
+    config.update(override)
     config.pop("n_timesteps")
+    n_envs = config.pop("n_envs", 1)
     config.pop("noise_type")
     noise = {key: config.pop(f"noise_{key}") for key in ("std", "final_std", "decay")}
     venv = make_multiagent_vec_env(
@@ -118,9 +132,12 @@ def measure(n_quantiles: int, timesteps: int, warmup: int) -> dict[str, float]:
     }
 
 
-def run_child(code_dir: str, n_quantiles: int, args: argparse.Namespace, core: int | None) -> dict[str, float]:
+def run_child(
+    code_dir: str, n_quantiles: int, args: argparse.Namespace, core: int | None, override: str = "{}"
+) -> dict[str, float]:
     """One measurement in a fresh process importing the package and the envs from ``code_dir``."""
     command = [sys.executable, os.path.abspath(__file__), "--child", str(n_quantiles), "--task", args.task]
+    command += ["--override", override]
     command += ["--timesteps", str(args.timesteps), "--warmup", str(args.warmup)]
     if core is not None:
         command = ["taskset", "-c", str(core), *command]
@@ -144,12 +161,20 @@ def main() -> None:
     parser.add_argument("--warmup", type=int, default=1600, help="timesteps before timing (half of them random)")
     parser.add_argument("--core", type=int, default=0, help="CPU core to pin each measurement to (-1: none)")
     parser.add_argument("--task", choices=("simple_spread", "uav"), default="simple_spread")
+    parser.add_argument(
+        "--override",
+        action="append",
+        default=[],
+        help="uav: NAME=JSON, settings over the current code's entry, measured as one more version (repeatable)",
+    )
     parser.add_argument("--child", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child is not None:
         import_envs_from(os.getcwd())
         if args.task == "uav":
-            print(json.dumps(measure_uav(args.timesteps, args.warmup)))
+            print(
+                json.dumps(measure_uav(args.timesteps, args.warmup, json.loads(args.override[0]) if args.override else None))
+            )
         else:
             print(json.dumps(measure(args.child, args.timesteps, args.warmup)))
         return
@@ -207,13 +232,16 @@ def compare_uav(args: argparse.Namespace) -> None:
     print(f"{UAV_ENV}, each version's zoo_configs/maddpg.yml entry, {args.timesteps} timed timesteps after {args.warmup}")
     print(f"load average before: {os.getloadavg()[0]:.2f}")
     with tempfile.TemporaryDirectory() as folder:
-        versions = {"current": REPO}
+        versions = {"current": (REPO, "{}")}
+        for item in args.override:
+            name, _, settings = item.partition("=")
+            versions[f"current, {name}"] = (REPO, settings)
         if args.reference:
-            versions = {f"reference {args.reference}": export_revision(args.reference, folder), **versions}
+            versions = {f"reference {args.reference}": (export_revision(args.reference, folder), "{}"), **versions}
         results: dict[str, list[dict[str, float]]] = {}
         for _ in range(args.rounds):
-            for name, code_dir in versions.items():
-                result = run_child(code_dir, 0, args, core)
+            for name, (code_dir, override) in versions.items():
+                result = run_child(code_dir, 0, args, core, override)
                 results.setdefault(name, []).append(result)
                 print(f"  {name:>20s}: {result['cpu_ms_per_timestep']:.2f} CPU ms/timestep", flush=True)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
@@ -228,7 +256,9 @@ def compare_uav(args: argparse.Namespace) -> None:
         print(f"| {name} | {results[name][0]['n_envs']} | {median(name):.2f} | {1e3 / median(name):,.1f} |")
     if args.reference:
         reference = next(iter(versions))
-        print(f"\ntimesteps per CPU second, current / reference = {median(reference) / median('current'):.2f}")
+        print()
+        for name in list(versions)[1:]:
+            print(f"timesteps per CPU second, {name} / reference = {median(reference) / median(name):.2f}")
 
 
 if __name__ == "__main__":

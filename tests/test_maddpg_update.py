@@ -320,29 +320,6 @@ def test_report_cnn_channels_set_the_widths_and_the_features():
     assert encoder(th.rand(5, 3, 4, 16, 16)).shape == (5, 3, 128)
 
 
-@pytest.mark.parametrize(("n_agents", "padding"), [(3, 1), (1, 1), (3, 0)])
-def test_coordinate_channels_act_as_if_appended_to_every_image(n_agents, padding):
-    # The encoder adds the first convolution's response to the coordinate maps once per pass instead of
-    # concatenating the maps to every image: the same outputs and weight gradients as the concatenation
-    from gymnasium import spaces
-
-    th.manual_seed(0)
-    encoder = ReportCNN(spaces.Box(0, 255, (4, 16, 16), np.uint8), n_agents=n_agents, padding=padding, coord_channels=True)
-    encoder.eval()  # compare before and after BatchNorm alike, without batch statistics
-    images = th.rand(5, n_agents, 4, 16, 16) if n_agents > 1 else th.rand(5, 4, 16, 16)
-    features = encoder(images)
-    features.sum().backward()
-    folded_grad = encoder.cnn[0].weight.grad.clone()
-    encoder.zero_grad()
-    flat = images.flatten(1, 2) if n_agents > 1 else images
-    coords = th.stack(th.meshgrid(th.linspace(0, 1, 16), th.linspace(0, 1, 16), indexing="xy"))  # column, row
-    per_agent = [th.cat([flat[:, 4 * i : 4 * i + 4], coords.expand(5, 2, 16, 16)], dim=1) for i in range(n_agents)]
-    expected = encoder.cnn(th.cat(per_agent, dim=1)).reshape(features.shape)
-    expected.sum().backward()
-    th.testing.assert_close(features, expected, rtol=1e-5, atol=1e-5)
-    th.testing.assert_close(folded_grad, encoder.cnn[0].weight.grad, rtol=1e-4, atol=1e-5)
-
-
 @pytest.mark.parametrize("policy", ["MlpPolicy", "CnnPolicy"])
 def test_sampled_actions_equal_sb3s_predict_path(policy):
     # MADDPG takes the actors' [-1, 1] outputs as they are; SB3's _sample_action maps them to the action space's

@@ -9,7 +9,6 @@ import math
 from typing import Any, ClassVar
 
 import torch as th
-import torch.nn.functional as F
 from gymnasium import spaces
 from stable_baselines3.common.preprocessing import preprocess_obs
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
@@ -137,32 +136,10 @@ class ReportCNN(BaseFeaturesExtractor):
         peak = marked.flatten(-2).amax(dim=-1, keepdim=True)
         return th.cat([col, row, peak], dim=-1)
 
-    def _coordinate_term(self, dtype: th.dtype) -> th.Tensor:
-        """
-        What the coordinate channels add to the first convolution's output, bias included: (1, g * c1, H', W').
-
-        The first convolution is linear in its input channels, so its output on [images, coordinates] is its image
-        weights on the images plus its coordinate weights on the coordinates; the second term is the same for every
-        image and is computed once per pass from a single pair of coordinate maps (zero padding pads both alike),
-        instead of concatenating the maps to every image in the batch.
-        """
-        first = self.cnn[0]
-        groups, n_coords = first.groups, self.coords.shape[0]
-        weight = first.weight.view(groups, -1, *first.weight.shape[1:])  # (g, c1, C + 2, 3, 3)
-        coordinate_weight = weight[:, :, -n_coords:].reshape(-1, n_coords, *first.weight.shape[2:])
-        coords = self.coords.to(dtype).repeat(groups, 1, 1).unsqueeze(0)  # (1, g * 2, H, W)
-        return F.conv2d(coords, coordinate_weight.to(dtype), first.bias, first.stride, first.padding, groups=groups)
-
-    def _first_convolution(self, images: th.Tensor) -> th.Tensor:
-        """The first convolution on (B, g * C, H, W) images; with ``coord_channels`` as if the maps were appended."""
-        first = self.cnn[0]
-        if not self.coord_channels:
-            return first(images)
-        groups, n_channels = first.groups, images.shape[1] // first.groups
-        weight = first.weight.view(groups, -1, *first.weight.shape[1:])[:, :, :n_channels]
-        image_weight = weight.reshape(-1, n_channels, *first.weight.shape[2:])
-        image_term = F.conv2d(images, image_weight.to(images.dtype), None, first.stride, first.padding, groups=groups)
-        return image_term + self._coordinate_term(image_term.dtype)
+    def _with_coords(self, observations: th.Tensor) -> th.Tensor:
+        """Append the coordinate channels to (..., C, H, W) images."""
+        coords = self.coords.to(observations.dtype).expand(*observations.shape[:-3], *self.coords.shape)
+        return th.cat([observations, coords], dim=-3)
 
     def forward(self, observations: th.Tensor) -> th.Tensor:
         """
@@ -170,6 +147,8 @@ class ReportCNN(BaseFeaturesExtractor):
         :return: features (B, F) when ``n_agents == 1`` and the input is 4-D, otherwise (B, n_agents, F)
         """
         positions = self._position_features(observations) if self.position_channel is not None else None
+        if self.coord_channels:
+            observations = self._with_coords(observations)
         if observations.dim() == 4:
             features = self._encode(observations).flatten(1)
         else:
@@ -185,7 +164,7 @@ class ReportCNN(BaseFeaturesExtractor):
         # default layout so that flatten keeps the (C, H, W) order of the features.
         if images.device.type == "cpu":
             images = images.contiguous(memory_format=th.channels_last)
-        return self.cnn[1:](self._first_convolution(images)).contiguous()
+        return self.cnn(images).contiguous()
 
 
 class MultiAgentFeatures(nn.Module):

@@ -85,6 +85,9 @@ ALGO[fast_b32]="${ALGO[fast_shared_small_b32]}"; POLICY[fast_b32]="${POLICY[exac
 # The config with a 25-quantile critic at alpha 1: does the quantile critic learn as fast as the scalar one?
 ENV[mates_q25]=uav_coverage_cpu_v1; ALGO[mates_q25]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[mates_q25]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
 POLICY[mates_q25]="{\"n_quantiles\": 25, $encoder}"; STEPS[mates_q25]=28000
+# The same at batch 32 (fast_b32 with 25 quantiles): the scalar against the quantile critic at equal settings
+ENV[fast_b32_q25]=uav_coverage_cpu_v1; ALGO[fast_b32_q25]="${ALGO[fast_b32]}"; ENV_KWARGS[fast_b32_q25]="${ENV_KWARGS[fast_b32]}"
+POLICY[fast_b32_q25]="{\"n_quantiles\": 25, $encoder}"; STEPS[fast_b32_q25]=28000
 ENV[fast_shared]=uav_coverage_cpu_v1; ALGO[fast_shared]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
 POLICY[fast_shared]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $encoder}"; STEPS[fast_shared]=28000
 ENV[fast_shared_envs2]=uav_coverage_cpu_v1; ALGO[fast_shared_envs2]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared_envs2]="${ENV_KWARGS[exact_tpn005_g09_mates]}"

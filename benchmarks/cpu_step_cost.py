@@ -153,6 +153,16 @@ def export_revision(revision: str, folder: str) -> str:
     return folder
 
 
+def print_header(args: argparse.Namespace, task: str) -> int | None:
+    """Print the date, machine, task and load; return the core to pin measurements to (None: no pinning)."""
+    print(
+        f"date: {datetime.date.today().isoformat()}, machine: {platform.node()} ({platform.processor() or platform.machine()})"
+    )
+    print(task)
+    print(f"load average before: {os.getloadavg()[0]:.2f}")
+    return None if args.core < 0 else args.core
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--reference", help="git revision to measure in the same run, alternating with this code")
@@ -182,12 +192,9 @@ def main() -> None:
         compare_uav(args)
         return
 
-    core = None if args.core < 0 else args.core
-    print(
-        f"date: {datetime.date.today().isoformat()}, machine: {platform.node()} ({platform.processor() or platform.machine()})"
+    core = print_header(
+        args, f"simple_spread_v3, {N_COPIES} copies, batch 256, one update per VecEnv step, {args.timesteps} timed timesteps"
     )
-    print(f"simple_spread_v3, {N_COPIES} copies, batch 256, one update per VecEnv step, {args.timesteps} timed timesteps")
-    print(f"load average before: {os.getloadavg()[0]:.2f}")
     with tempfile.TemporaryDirectory() as folder:
         versions = {"current": REPO}
         if args.reference:
@@ -225,12 +232,9 @@ def main() -> None:
 
 def compare_uav(args: argparse.Namespace) -> None:
     """The quick start's config of each code version, alternating versions in each round."""
-    core = None if args.core < 0 else args.core
-    print(
-        f"date: {datetime.date.today().isoformat()}, machine: {platform.node()} ({platform.processor() or platform.machine()})"
+    core = print_header(
+        args, f"{UAV_ENV}, each version's zoo_configs/maddpg.yml entry, {args.timesteps} timed timesteps after {args.warmup}"
     )
-    print(f"{UAV_ENV}, each version's zoo_configs/maddpg.yml entry, {args.timesteps} timed timesteps after {args.warmup}")
-    print(f"load average before: {os.getloadavg()[0]:.2f}")
     with tempfile.TemporaryDirectory() as folder:
         versions = {"current": (REPO, "{}")}
         for item in args.override:

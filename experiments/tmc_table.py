@@ -3,7 +3,7 @@ The table of ``experiments/tmc_sweep.sh``: for each N, the baselines measured he
 trained MADDPG runs (mean ± std over seeds of each seed's episode means, and the training minutes per seed) and the
 paper's eta_T at that N.
 
-    python experiments/tmc_table.py experiments/results/2026-12-04-tmc
+    python experiments/tmc_table.py experiments/results/2026-12-04-tmc --figure docs/figures/tmc_eta_vs_n.png
 
 Reads ``<out>/baselines/n<N>/results.csv``, ``<out>/eval/n<N>_s<seed>/results.csv`` (the ``evaluate`` command's) and
 ``<out>/train_n<N>_s<seed>.seconds``.
@@ -34,13 +34,17 @@ def read_rows(path: Path) -> list[dict[str, str]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument("out", type=Path, help="the sweep's output folder (OUT of tmc_sweep.sh)")
+    parser.add_argument("--figure", type=Path, help="also draw eta_T against N (the paper's lines and ours) here")
     args = parser.parse_args()
+    etas: dict[str, dict[int, tuple[float, float]]] = defaultdict(dict)  # method -> N -> (mean, std)
 
     lines = ["| N | method | episodes | c_T | f_T | ē_T | η_T | train min/seed |", "|---|---|---|---|---|---|---|---|"]
     for folder in sorted((args.out / "baselines").glob("n*"), key=lambda p: int(p.name[1:])):
         for row in read_rows(folder / "results.csv"):
             cells = [f"{float(row[f'{key}_mean']):.3f} ± {float(row[f'{key}_std']):.3f}" for key in METRICS]
             lines.append(f"| {folder.name[1:]} | {row['method']} | {row['episodes']} | " + " | ".join(cells) + " | |")
+            eta = (float(row["energy_efficiency_mean"]), float(row["energy_efficiency_std"]))
+            etas[f"{row['method']} (here)"][int(folder.name[1:])] = eta
 
     # Trained runs: one seed's value is its mean over the episodes; the row is mean ± std over seeds.
     trained: dict[int, list[dict[str, str]]] = defaultdict(list)
@@ -59,6 +63,8 @@ def main() -> None:
             values = np.array([float(r[f"{key}_mean"]) for r in rows])
             cells.append(f"{values.mean():.3f} ± {values.std():.3f}")
         minutes = f"{np.mean(seconds[n]) / 60:.1f}" if seconds[n] else ""
+        seed_etas = np.array([float(r["energy_efficiency_mean"]) for r in rows])
+        etas[f"{rows[0]['method']} (here, {len(rows)} seeds)"][n] = (float(seed_etas.mean()), float(seed_etas.std()))
         label = f"| {n} | {rows[0]['method']} ({len(rows)} seeds) | {rows[0]['episodes']} each | "
         lines.append(label + " | ".join(cells) + f" | {minutes} |")
     print("\n".join(lines))
@@ -69,6 +75,36 @@ def main() -> None:
     print("|---|" + "---|" * len(ns))
     for method, values in PAPER_ETA.items():
         print(f"| {method} | " + " | ".join(f"{values[n]:.3f}" for n in ns) + " |")
+    if args.figure:
+        draw_figure(args.figure, etas)
+
+
+def draw_figure(path: Path, etas: dict[str, dict[int, tuple[float, float]]]) -> None:
+    """eta_T against N: the paper's methods dashed, ours solid (mean ± std), the limit 1 / 0.5 = 2 dotted."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(figsize=(6.4, 4.2))
+    for method, values in PAPER_ETA.items():
+        ns = sorted(values)
+        axes.plot(ns, [values[n] for n in ns], linestyle="--", marker="s", markersize=4, label=method)
+    for method, values in sorted(etas.items()):
+        ns = sorted(values)
+        axes.errorbar(
+            ns, [values[n][0] for n in ns], yerr=[values[n][1] for n in ns], marker="o", markersize=4, capsize=3, label=method
+        )
+    axes.axhline(2.0, color="grey", linestyle=":", label="limit (c = f = 1, hovering)")
+    axes.set_xlabel("number of UAVs N")
+    axes.set_ylabel("energy efficiency η_T")
+    axes.set_title("uav_coverage_tmc_v1 against Liu et al. (TMC 2020)")
+    axes.legend(fontsize=7, loc="lower right")
+    axes.grid(alpha=0.3)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(figure)
+    print(f"figure: {path}")
 
 
 if __name__ == "__main__":

@@ -283,10 +283,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             # (for Discrete actions the one-hot argmax). The target critics encode o' once; target actors that read
             # the critics' encoders reuse them
             next_features = self.critic_target.encode(replay_data.next_observations)  # (B, N, F)
-            if self.actor_target.reads_critic_features:
-                next_actions = self.actor_target.squash(self.actor_target.preactivations_from_features(next_features))
-            else:
-                next_actions = self.actor_target(replay_data.next_observations)  # (B, N, A)
+            next_actions = self.actor_target(replay_data.next_observations, next_features)  # (B, N, A)
             if self.target_policy_noise > 0.0 and not self.actor_target.discrete:
                 # TD3's target policy smoothing: the target is the critic's value around the target action (not for
                 # one-hot actions, which have no neighbourhood the critic has seen)
@@ -378,10 +375,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             # The critics' encodings of this step's observations are reused (detached) instead of encoding them
             # again; actors that read the critics' encoders take them as their input too.
             with self._autocast():
-                if self.actor.reads_critic_features:
-                    preactivations = self.actor.preactivations_from_features(features.detach())
-                else:
-                    preactivations = self.actor.preactivations(replay_data.observations)
+                preactivations = self.actor.preactivations(replay_data.observations, features)
                 actor_loss = self.actor_loss(replay_data, features.detach(), preactivations)
             self.actor.optimizer.zero_grad(set_to_none=True)
             actor_loss.sum().backward(inputs=list(self.actor.parameters()))

@@ -75,27 +75,21 @@ class MultiAgentActor(nn.Module):
             activation_fn,
         )
 
-    def preactivations(self, observations: th.Tensor) -> th.Tensor:
+    def preactivations(self, observations: th.Tensor, critic_features: th.Tensor | None = None) -> th.Tensor:
         """
         :param observations: (B, N, *obs_shape)
+        :param critic_features: the critics' encodings of ``observations`` (B, N, F), where the caller has them (the
+            update does): actors that read the critics' encoders take them instead of encoding again; ignored by
+            actors with encoders of their own
         :return: the actions before the tanh squashing, (B, N, action_dim); the logits (B, N, n) for Discrete(n)
         """
         if self.reads_critic_features:
             # The critic's encodings are the actor's input, not its parameters: no gradient flows back into them
-            with th.no_grad():
-                features = self.features(observations)
-            return self.mu(features)
+            if critic_features is None:
+                with th.no_grad():
+                    critic_features = self.features(observations)
+            return self.mu(critic_features.detach())
         return self.mu(self.features(observations))
-
-    def preactivations_from_features(self, features: th.Tensor) -> th.Tensor:
-        """
-        The actors' MLPs on encodings already computed (with ``critic_features``: the critic's, which the update
-        has at hand, so the observations are not encoded again).
-
-        :param features: (B, N, F)
-        :return: the actions before the tanh squashing, (B, N, action_dim)
-        """
-        return self.mu(features)
 
     def squash(self, preactivations: th.Tensor) -> th.Tensor:
         """
@@ -108,12 +102,13 @@ class MultiAgentActor(nn.Module):
             return one_hot_argmax(preactivations)
         return th.tanh(preactivations)
 
-    def forward(self, observations: th.Tensor) -> th.Tensor:
+    def forward(self, observations: th.Tensor, critic_features: th.Tensor | None = None) -> th.Tensor:
         """
         :param observations: (B, N, *obs_shape)
+        :param critic_features: the critics' encodings of ``observations``, if at hand (see ``preactivations``)
         :return: actions in [-1, 1], (B, N, action_dim); one-hot vectors (B, N, n) for Discrete(n)
         """
-        return self.squash(self.preactivations(observations))
+        return self.squash(self.preactivations(observations, critic_features))
 
 
 class MultiAgentQuantileCritic(nn.Module):

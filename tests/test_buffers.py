@@ -163,6 +163,9 @@ def test_rejects_rows_that_are_not_whole_joint_steps():
         MultiAgentReplayBuffer(30, OBS_SPACE, ACT_SPACE, "cpu", n_envs=5, n_agents=2)
     with pytest.raises(TypeError, match="Box"):
         MultiAgentReplayBuffer(30, spaces.Discrete(3), ACT_SPACE, "cpu", n_envs=2, n_agents=2)
+    # the action spaces are the algorithms' (sb3_maddpg.common.actions.check_action_space)
+    with pytest.raises(TypeError, match=r"MultiAgentReplayBuffer accepts Box \(continuous\) and Discrete action spaces"):
+        MultiAgentReplayBuffer(30, OBS_SPACE, spaces.MultiBinary(3), "cpu", n_envs=2, n_agents=2)
 
 
 def test_like_from_buffer_and_to_numpy_buffer_build_independent_buffers():

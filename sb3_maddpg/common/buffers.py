@@ -13,7 +13,7 @@ from gymnasium import spaces
 from stable_baselines3.common.buffers import BaseBuffer, ReplayBuffer
 from stable_baselines3.common.vec_env import VecNormalize
 
-from sb3_maddpg.common.actions import action_width, is_discrete, one_hot
+from sb3_maddpg.common.actions import action_width, check_action_space, is_discrete, one_hot
 
 try:
     import psutil
@@ -137,8 +137,7 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         name = type(self).__name__
         if not isinstance(observation_space, spaces.Box):
             raise TypeError(f"{name} accepts a Box observation space, got {observation_space}")
-        if not isinstance(action_space, spaces.Box | spaces.Discrete):
-            raise TypeError(f"{name} accepts a Box or Discrete action space, got {action_space}")
+        check_action_space(action_space, name)
         if n_agents < 1 or n_envs % n_agents != 0:
             raise ValueError(
                 f"n_envs (VecEnv rows) must be a positive multiple of n_agents >= 1, got n_envs={n_envs}, n_agents={n_agents}"

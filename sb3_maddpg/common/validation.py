@@ -15,7 +15,7 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
-from sb3_maddpg.common.actions import check_action_space, check_gumbel_temperature, is_discrete
+from sb3_maddpg.common.actions import check_action_space, check_gumbel_temperature
 
 
 def check_int(name: str, value: Any, minimum: int | None = None) -> int:
@@ -183,12 +183,8 @@ def check_off_policy_arguments(algorithm: str, arguments: dict[str, Any]) -> Non
             "wrap it with sb3_maddpg.make_multiagent_vec_env(env_fn, n_envs=...)"
         )
     if env is not None and not isinstance(env, str):
+        # action_noise against the action space: MultiAgentOffPolicyAlgorithm._check_action_noise, once the env is read
         check_action_space(env.action_space, algorithm)
-        if is_discrete(env.action_space) and arguments["action_noise"] is not None:
-            raise ValueError(
-                f"action_noise applies to continuous (Box) actions; with {env.action_space} actions {algorithm} explores "
-                "by sampling its actors' logits (Gumbel-max): leave action_noise=None"
-            )
     if env is not None and not isinstance(env, str) and not isinstance(env.observation_space, spaces.Box):
         raise TypeError(f"{algorithm} accepts Box observation spaces (vectors or images), got {env.observation_space}")
     learning_rate = arguments["learning_rate"]

@@ -180,8 +180,10 @@ def test_wall_margin_checks():
     pois = np.array([[1.0, 1.0]])
     with pytest.raises(ValueError, match="wall_margin=9 leaves no cell centre"):
         greedy_placement(pois, 2, 16, 3.0, wall_margin=9)
-    with pytest.raises(ValueError, match="wall_margin must be a number >= 0"):
+    with pytest.raises(ValueError, match="wall_margin must be a finite number >= 0, got -1.0"):
         GreedyStaticController(wall_margin=-1.0)
+    with pytest.raises(ValueError, match="wall_margin must be a finite number >= 0, got inf"):
+        GreedyStaticController(wall_margin=float("inf"))
     # margin 3.5 on 16 x 16: only the centres 3.5 ... 12.5 are candidates
     spots = greedy_placement(np.argwhere(np.ones((16, 16))).astype(float), 6, 16, 3.0, 6.0, wall_margin=3.5)
     assert spots.min() >= 3.5 and spots.max() <= 12.5

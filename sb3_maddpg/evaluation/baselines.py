@@ -15,6 +15,8 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
+from sb3_maddpg.common.validation import check_number
+
 
 class Controller(Protocol):
     """What :func:`~sb3_maddpg.evaluation.evaluate.run_episode` needs from a policy."""
@@ -186,11 +188,9 @@ class GreedyStaticController:
     """
 
     def __init__(self, name: str = "greedy_static", connected: bool = True, wall_margin: float = 0.0) -> None:
-        if isinstance(wall_margin, bool) or not isinstance(wall_margin, int | float) or not 0.0 <= wall_margin < 1e6:
-            raise ValueError(f"wall_margin must be a number >= 0, got {wall_margin!r}")
         self.name = name
         self.connected = connected
-        self.wall_margin = float(wall_margin)
+        self.wall_margin = check_number("wall_margin", wall_margin, 0.0)
         self.targets: np.ndarray | None = None
 
     def reset(self, env: ParallelEnv, seed: int | None = None) -> None:

@@ -180,8 +180,10 @@ def test_make_baselines_and_bad_values() -> None:
         make_baselines(["greedy_step"], uav_env=False)
     with pytest.raises(TypeError, match="sequence of names"):
         make_baselines("random", uav_env=True)
-    with pytest.raises(ValueError, match="n_headings must be an int >= 1"):
+    with pytest.raises(ValueError, match="n_headings must be an integer >= 1, got 0"):
         GreedyStepController(n_headings=0)
+    with pytest.raises(ValueError, match="n_headings must be an integer >= 1, got 2.5"):
+        GreedyStepController(n_headings=2.5)
 
 
 def test_evaluate_command_runs_the_chosen_baselines(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

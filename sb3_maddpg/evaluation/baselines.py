@@ -15,7 +15,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from sb3_maddpg.common.validation import check_number
+from sb3_maddpg.common.validation import check_int, check_number
 
 
 class Controller(Protocol):
@@ -246,9 +246,8 @@ def greedy_step_scores(
     """
     from sb3_maddpg_envs.uav_coverage.dynamics import move_within_walls, step_energy
 
-    if not isinstance(n_headings, int | np.integer) or isinstance(n_headings, bool) or n_headings < 1:
-        raise ValueError(f"n_headings must be an int >= 1, got {n_headings!r}")
-    n, n_candidates = core.n_uavs, 1 + int(n_headings)
+    n_headings = check_int("n_headings", n_headings, 1)
+    n, n_candidates = core.n_uavs, 1 + n_headings
     positions, active = core.positions, core.active
     pois = core.pois  # (K, 2)
     angles = 2.0 * np.pi * np.arange(n_headings) / n_headings
@@ -319,10 +318,8 @@ class GreedyStepController:
     """
 
     def __init__(self, name: str = "greedy_step", n_headings: int = GREEDY_STEP_HEADINGS) -> None:
-        if not isinstance(n_headings, int) or isinstance(n_headings, bool) or n_headings < 1:
-            raise ValueError(f"n_headings must be an int >= 1, got {n_headings!r}")
         self.name = name
-        self.n_headings = n_headings
+        self.n_headings = check_int("n_headings", n_headings, 1)
 
     def reset(self, env: ParallelEnv, seed: int | None = None) -> None:
         _core(env)  # fails early on an env without a simulation core

@@ -3,13 +3,14 @@
 # uav_coverage_cpu_v1 with 300-step episodes, two runs at a time, each pinned to one core with one torch thread.
 #   bash experiments/run_results.sh [CONFIG ...]     (default: every configuration below)
 #   python experiments/results_table.py runs/results/*.jsonl --figure docs/figures/learning_curves_v1.png
-# SEEDS (default "0 1 2"), TIMESTEPS (default: 28000 for the config exact_tpn005_g09_mates, 24000 for the others),
+# SEEDS (default "0 1 2"), EVAL_EPISODES (final evaluation episodes; default 20, 100 for the hazard configs), TIMESTEPS (default: 28000 for the config exact_tpn005_g09_mates, 24000 for the others),
 # OUT (default runs/results) and CORES (default "0 1", one run at a time on each) override the defaults.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 py="${PYTHON:-.venv/bin/python}"
 out="${OUT:-runs/results}"
 timesteps="${TIMESTEPS:-}"
+eval_episodes="${EVAL_EPISODES:-}"
 read -r -a seeds <<< "${SEEDS:-0 1 2}"
 read -r -a cores <<< "${CORES:-0 1}"
 mkdir -p "$out"
@@ -29,7 +30,7 @@ fast_actor="$v1_common, \"target_policy_noise\": 0.2, \"actor_learning_rate\": 0
 fast_actor_tpn005="$v1_common, \"target_policy_noise\": 0.05, \"actor_learning_rate\": 0.0003"
 encoder='"features_extractor_kwargs": {"padding": 1, "coord_channels": true, "batch_norm_eps": 0.001, "position_channel": 1}'
 
-declare -A ENV ALGO POLICY ENV_KWARGS STEPS NENVS
+declare -A ENV ALGO POLICY ENV_KWARGS STEPS NENVS EPISODES
 # v1 draws each UAV at its exact position (position_mark="exact") and shows the linked teammates in a fourth channel
 # (teammate_channel=True) since 2026-12-04; the configurations measured before that keep the mark and the channels
 # they were measured with.
@@ -88,6 +89,23 @@ POLICY[mates_q25]="{\"n_quantiles\": 25, $encoder}"; STEPS[mates_q25]=28000
 # The same at batch 32 (fast_b32 with 25 quantiles): the scalar against the quantile critic at equal settings
 ENV[fast_b32_q25]=uav_coverage_cpu_v1; ALGO[fast_b32_q25]="${ALGO[fast_b32]}"; ENV_KWARGS[fast_b32_q25]="${ENV_KWARGS[fast_b32]}"
 POLICY[fast_b32_q25]="{\"n_quantiles\": 25, $encoder}"; STEPS[fast_b32_q25]=28000
+# Screens of the quantile critic's lag (research log, 2026-12-05): fewer quantiles; a slower critic
+ENV[fast_b32_q5]=uav_coverage_cpu_v1; ALGO[fast_b32_q5]="${ALGO[fast_b32]}"; ENV_KWARGS[fast_b32_q5]="${ENV_KWARGS[fast_b32]}"
+POLICY[fast_b32_q5]="{\"n_quantiles\": 5, $encoder}"; STEPS[fast_b32_q5]=28000
+ENV[fast_b32_q25_clr3e4]=uav_coverage_cpu_v1; ALGO[fast_b32_q25_clr3e4]="${ALGO[fast_b32]%\}}, \"learning_rate\": 0.0003}"
+ENV_KWARGS[fast_b32_q25_clr3e4]="${ENV_KWARGS[fast_b32]}"; POLICY[fast_b32_q25_clr3e4]="${POLICY[fast_b32_q25]}"; STEPS[fast_b32_q25_clr3e4]=28000
+# The 25-quantile critic with the mean-anchored loss (mean_anchored_quantiles: the mean learns with the scalar TD loss)
+ENV[fast_b32_q25_anchor]=uav_coverage_cpu_v1; ALGO[fast_b32_q25_anchor]="${ALGO[fast_b32]%\}}, \"mean_anchored_quantiles\": true}"
+ENV_KWARGS[fast_b32_q25_anchor]="${ENV_KWARGS[fast_b32]}"; POLICY[fast_b32_q25_anchor]="${POLICY[fast_b32_q25]}"; STEPS[fast_b32_q25_anchor]=28000
+# The alpha sweep on the hazardous task (issue: risk that CVaR can see): fast_b32's settings on
+# uav_coverage_hazard_cpu_v1, the classic critic and 25 quantiles at alpha 1, 0.5, 0.25, 0.1; 100 evaluation episodes
+for config in hz_classic hz_a1 hz_a05 hz_a025 hz_a01; do
+  ENV[$config]=uav_coverage_hazard_cpu_v1; ENV_KWARGS[$config]="${ENV_KWARGS[fast_b32]}"; STEPS[$config]=28000; EPISODES[$config]=100
+done
+ALGO[hz_classic]="${ALGO[fast_b32]}"; POLICY[hz_classic]="${POLICY[fast_b32]}"
+ALGO[hz_a1]="${ALGO[fast_b32]}"; ALGO[hz_a05]="${ALGO[fast_b32]%\}}, \"cvar_alpha\": 0.5}"
+ALGO[hz_a025]="${ALGO[fast_b32]%\}}, \"cvar_alpha\": 0.25}"; ALGO[hz_a01]="${ALGO[fast_b32]%\}}, \"cvar_alpha\": 0.1}"
+for config in hz_a1 hz_a05 hz_a025 hz_a01; do POLICY[$config]="${POLICY[fast_b32_q25]}"; done
 ENV[fast_shared]=uav_coverage_cpu_v1; ALGO[fast_shared]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
 POLICY[fast_shared]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $encoder}"; STEPS[fast_shared]=28000
 ENV[fast_shared_envs2]=uav_coverage_cpu_v1; ALGO[fast_shared_envs2]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared_envs2]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
@@ -110,7 +128,7 @@ run() {  # run CONFIG SEED CORE
   taskset -c "$core" "$py" experiments/uav_learning.py --env "${ENV[$config]}" --env-kwargs "{\"max_cycles\": 300${ENV_KWARGS[$config]:+, ${ENV_KWARGS[$config]}}}" \
     --algo-kwargs "${ALGO[$config]}" --policy-kwargs "${POLICY[$config]}" --timesteps "${timesteps:-${STEPS[$config]:-24000}}" \
     --n-envs "${NENVS[$config]:-1}" \
-    --eval-every 4000 --seed "$seed" --save "$out/${config}_s${seed}.zip" --out "$out/${config}_s${seed}.jsonl" \
+    --eval-every 4000 --eval-episodes "${eval_episodes:-${EPISODES[$config]:-20}}" --seed "$seed" --save "$out/${config}_s${seed}.zip" --out "$out/${config}_s${seed}.jsonl" \
     > "$out/${config}_s${seed}.log" 2>&1
 }
 

@@ -26,7 +26,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
 from sb3_maddpg.common.noise import DecayingGaussianNoise
 from sb3_maddpg.evaluation.baselines import ModelController
-from sb3_maddpg.evaluation.evaluate import METRICS, evaluate_controllers, worst_decile
+from sb3_maddpg.evaluation.evaluate import HAZARD_COUNTS, METRICS, evaluate_controllers, worst_decile
 from sb3_maddpg.zoo.registry import make_multiagent_env
 
 EVAL_SEED = 10_000
@@ -41,6 +41,8 @@ def evaluate(model: MADDPG, env_id: str, env_kwargs: dict[str, Any], n_episodes:
     episodes = results["maddpg"]
     summary = {key: float(np.mean([e[key] for e in episodes])) for key in (*METRICS, "wall_hits", "return")}
     summary["return_worst_decile"] = worst_decile([e["return"] for e in episodes])
+    # hazard events per episode, where the env reports them (uav_coverage_hazard_cpu_v1)
+    summary.update({key: float(np.mean([e[key] for e in episodes])) for key in HAZARD_COUNTS if key in episodes[0]})
     return summary
 
 

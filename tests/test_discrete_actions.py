@@ -12,10 +12,10 @@ from maddpg_test_envs import DiscreteTargetReachEnv, TargetReachEnv
 
 from sb3_maddpg import MADDPG, MATD3, evaluate_policy, make_multiagent_vec_env
 from sb3_maddpg.common.actions import gumbel_max_sample, one_hot, straight_through_gumbel_softmax
+from sb3_maddpg.common.agent_spaces import read_agent_spaces
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer, MultiAgentReplayBufferSamples
 from sb3_maddpg.common.distributional import quantile_huber_loss
 from sb3_maddpg.common.noise import DecayingGaussianNoise
-from sb3_maddpg.common.vec_env import check_multiagent_spaces
 
 
 def make_model(algorithm=MADDPG, n_agents: int = 3, n_envs: int = 2, share_features_extractor: bool = False, **kwargs):
@@ -45,8 +45,8 @@ def test_vec_env_takes_a_shared_discrete_space_and_the_env_gets_integers():
 
 def test_mpe2_discrete_simple_spread_is_accepted():
     simple_spread_v3 = pytest.importorskip("mpe2.simple_spread_v3")
-    _, action_space = check_multiagent_spaces(simple_spread_v3.parallel_env(continuous_actions=False))
-    assert action_space == spaces.Discrete(5)
+    agent_spaces = read_agent_spaces(simple_spread_v3.parallel_env(continuous_actions=False))
+    assert agent_spaces.homogeneous and agent_spaces.action_spaces == (spaces.Discrete(5),) * 3
     venv = make_multiagent_vec_env(simple_spread_v3.parallel_env, seed=0, env_kwargs=dict(continuous_actions=False))
     model = MADDPG("MlpPolicy", venv, buffer_size=100, learning_starts=10, batch_size=4, seed=0)
     model.learn(20)

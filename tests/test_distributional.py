@@ -3,7 +3,13 @@
 import pytest
 import torch as th
 
-from sb3_maddpg.common.distributional import cvar, cvar_n_lowest, quantile_huber_loss, quantile_midpoints
+from sb3_maddpg.common.distributional import (
+    cvar,
+    cvar_n_lowest,
+    mean_anchored_quantile_loss,
+    quantile_huber_loss,
+    quantile_midpoints,
+)
 
 
 def test_quantile_midpoints():
@@ -177,3 +183,73 @@ def test_fused_quantile_huber_loss_in_row_chunks_equals_one_piece(monkeypatch, c
     (chunked_grad,) = th.autograd.grad(chunked.sum(), current)
     assert th.allclose(chunked, expected, rtol=1e-12, atol=1e-12)
     assert th.allclose(chunked_grad, expected_grad, rtol=1e-12, atol=1e-12)
+
+
+def test_mean_anchored_quantile_loss_hand_computed():
+    # n = 2 quantiles at tau 0.25 and 0.75, one target sample. z = (0, 2), t = 1: mean error 0, so only the quantile
+    # term: 0.25 * huber(1) + 0.25 * huber(-1) = 0.25 * 0.5 * 2 = 0.25, gradient (-0.25, 0.25) (already mean-free)
+    z = th.tensor([[0.0, 2.0]], requires_grad=True)
+    loss = mean_anchored_quantile_loss(z, th.tensor([[1.0]]))
+    loss.sum().backward()
+    assert loss.item() == pytest.approx(0.25)
+    assert z.grad[0].tolist() == pytest.approx([-0.25, 0.25])
+    # z = (0, 0), t = 2: quantile term 0.25 * 1.5 + 0.75 * 1.5 = 1.5 with gradient (-0.25, -0.75), of which only the
+    # mean-free part (0.25, -0.25) passes; mean term n / 2 * huber(2 - 0) = 1.5 with gradient (-0.5, -0.5)
+    z = th.tensor([[0.0, 0.0]], requires_grad=True)
+    loss = mean_anchored_quantile_loss(z, th.tensor([[2.0]]))
+    loss.sum().backward()
+    assert loss.item() == pytest.approx(3.0)
+    assert z.grad[0].tolist() == pytest.approx([-0.25, -0.75])
+    # z = (0, 1), t = 0.9, inside the Huber threshold: plain gradient (-0.25 * 0.9, 0.25 * 0.1) = (-0.225, 0.025), its
+    # mean-free part (-0.125, 0.125); mean term 2 / 2 * huber(0.9 - 0.5), d/dz_i = -0.4 / 2: total (-0.325, -0.075)
+    z = th.tensor([[0.0, 1.0]], requires_grad=True)
+    loss = mean_anchored_quantile_loss(z, th.tensor([[0.9]]))
+    loss.sum().backward()
+    # quantile term 0.25 * 0.5 * 0.81 + 0.25 * 0.5 * 0.01 = 0.1025; mean term 1 * 0.5 * 0.16 = 0.08
+    assert loss.item() == pytest.approx(0.1825)
+    assert z.grad[0].tolist() == pytest.approx([-0.325, -0.075])
+
+
+def test_mean_anchored_quantile_loss_is_the_plain_loss_with_one_quantile():
+    z = th.tensor([[0.3], [-1.0]])
+    t = th.tensor([[2.0, 0.1], [-0.5, 4.0]])
+    assert th.equal(mean_anchored_quantile_loss(z, t), quantile_huber_loss(z, t))
+
+
+def test_mean_head_quantiles_and_where_the_shape_gradient_goes():
+    from gymnasium import spaces
+
+    from sb3_maddpg.maddpg.policies import MultiAgentQuantileCritic
+
+    th.manual_seed(0)
+    critic = MultiAgentQuantileCritic(
+        spaces.Box(-1, 1, (3,)),
+        spaces.Box(-1, 1, (2,)),
+        n_agents=2,
+        n_quantiles=4,
+        net_arch=[8, 8],
+        activation_fn=th.nn.ReLU,
+        features_extractor_class=__import__("stable_baselines3").common.torch_layers.FlattenExtractor,
+        features_extractor_kwargs={},
+        normalize_images=False,
+        mean_head=True,
+    )
+    observations, actions = th.randn(5, 2, 3), th.rand(5, 2, 2) * 2 - 1
+    features = critic.encode(observations)
+    raw = critic.quantile_nets(th.cat([features.flatten(1), actions.flatten(1)], dim=1).unsqueeze(1).expand(5, 2, -1))
+    quantiles = critic.all_quantiles_from_features(features, actions)[0]  # (B, N, 4)
+    # mu + d_j - mean(d): the mean of the quantiles is output 0, the deviations keep their differences
+    assert th.allclose(quantiles.mean(dim=-1), raw[..., 0], atol=1e-6)
+    assert th.allclose(quantiles[..., 1] - quantiles[..., 0], raw[..., 2] - raw[..., 1], atol=1e-6)
+    layers = [module for module in critic.quantile_nets.net if hasattr(module, "weight")]
+    trunk_sizes = {}
+    for shape_gradient in (False, True):
+        critic.zero_grad()
+        spread = critic.all_quantiles_from_features(features, actions, shape_gradient=shape_gradient)[0].var(dim=-1)
+        spread.sum().backward()  # depends on the deviations only
+        output = layers[-1].weight.grad  # (models, in, out)
+        # the mean's row gets nothing (up to rounding: mu cancels in the spread), the deviations' rows do
+        assert output[..., 0].abs().max() < 1e-6 * output[..., 1:].abs().max()
+        trunk_sizes[shape_gradient] = max(layer.weight.grad.abs().max().item() for layer in layers[:-1])
+    # without the shape's gradient the layers below the output get only rounding noise through the mean
+    assert trunk_sizes[False] < 1e-6 * trunk_sizes[True]

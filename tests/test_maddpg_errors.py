@@ -20,6 +20,11 @@ class MixedActionEnv(TargetReachEnv):
         return spaces.Box(-1.0, 1.0, (2 if agent == "agent_0" else 3,), np.float32)
 
 
+class BoxAndDiscreteEnv(TargetReachEnv):
+    def action_space(self, agent):
+        return spaces.Box(-1.0, 1.0, (2,), np.float32) if agent == "agent_0" else spaces.Discrete(5)
+
+
 def raw_supersuit_env(env, n_envs=1):
     """SuperSuit's own VecEnv: no n_agents attribute, SuperSuit's checks only."""
     return ss.concat_vec_envs_v1(ss.pettingzoo_env_to_vec_env_v1(env), n_envs, base_class="stable_baselines3")
@@ -34,8 +39,10 @@ def test_multidiscrete_action_space():
 
 
 def test_agents_with_different_spaces():
-    with pytest.raises(ValueError, match="share one observation space and one action space"):
-        make_multiagent_vec_env(MixedActionEnv)
+    # Different action widths are padded (tests/test_heterogeneous_spaces.py); a Box agent beside a Discrete one is not
+    assert make_multiagent_vec_env(MixedActionEnv).agent_spaces.action_widths.tolist() == [2, 3]
+    with pytest.raises(ValueError, match="all have Box actions or all Discrete actions, not a mix"):
+        make_multiagent_vec_env(BoxAndDiscreteEnv)
 
 
 def test_rows_not_a_multiple_of_agents():
@@ -117,3 +124,10 @@ def test_share_actor_is_an_algorithm_argument():
     venv = make_multiagent_vec_env(TargetReachEnv)
     with pytest.raises(ValueError, match=r"MADDPG\(..., share_actor=True\)"):
         MADDPG("MlpPolicy", venv, policy_kwargs=dict(share_actor=True))
+
+
+def test_mean_anchored_quantiles_is_an_algorithm_argument():
+    with pytest.raises(ValueError, match="mean_anchored_quantiles is an argument of MADDPG"):
+        MADDPG("MlpPolicy", make_multiagent_vec_env(TargetReachEnv), policy_kwargs=dict(mean_anchored_quantiles=True))
+    with pytest.raises(TypeError, match="mean_anchored_quantiles"):
+        MADDPG("MlpPolicy", make_multiagent_vec_env(TargetReachEnv), mean_anchored_quantiles="yes")

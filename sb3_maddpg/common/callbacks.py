@@ -44,6 +44,30 @@ def joint_episode_metrics(
     return metrics
 
 
+def agent_team(agent: str) -> str:
+    """
+    The team of an agent by PettingZoo's naming: its name without the trailing ``_<index>`` (``adversary_1`` ->
+    ``adversary``; MPE2's ``leadadversary_0`` is a team of its own).
+
+    :param agent: the agent's name
+    :return: the team's name
+    """
+    name, _, index = agent.rpartition("_")
+    return name if name and index.isdigit() else agent
+
+
+def team_returns(agent_returns: dict[str, float]) -> dict[str, float]:
+    """
+    :param agent_returns: agent -> its return of an episode
+    :return: team -> the sum of its agents' returns, in the order the teams first appear
+    """
+    teams: dict[str, float] = {}
+    for agent, value in agent_returns.items():
+        team = agent_team(str(agent))
+        teams[team] = teams.get(team, 0.0) + float(value)
+    return teams
+
+
 class EpisodeMetricsCallback(BaseCallback):
     """
     Logs the environment's episode-end metrics (coverage, fairness, energy, energy efficiency, wall hits,
@@ -51,7 +75,9 @@ class EpisodeMetricsCallback(BaseCallback):
 
     It reads the infos once per *joint* episode (the row of agent 0 of each copy, agent-major rows as made by
     ``make_multiagent_vec_env``), not once per agent row, and logs each agent's return of the episode as
-    ``<prefix>/ep_rew_<agent>`` beside SB3's team return ``rollout/ep_rew_mean``. Each logged value is the mean over
+    ``<prefix>/ep_rew_<agent>`` beside SB3's team return ``rollout/ep_rew_mean``; where the agents' names make
+    several teams (``team_returns``: ``adversary_0``, ``adversary_1`` against ``agent_0``), each team's return as
+    ``<prefix>/ep_rew_team_<team>``. Each logged value is the mean over
     the episodes that ended since the last dump of the logger (``logger.record_mean``), SB3 style. Envs whose infos
     lack the metric keys (e.g. ``simple_spread_v3``) log only the agents' returns.
 
@@ -92,8 +118,14 @@ class EpisodeMetricsCallback(BaseCallback):
         # All agents of a copy end their joint episode together, so agent 0's row says whether the copy ended.
         for first_row in np.flatnonzero(np.asarray(dones)[::n_agents]) * n_agents:
             # Beside SB3's rollout/ep_rew_mean (the team return), each agent's return
-            for agent, value in infos[first_row].get("episode", {}).get("agent_r", {}).items():
+            agent_returns = infos[first_row].get("episode", {}).get("agent_r", {})
+            for agent, value in agent_returns.items():
                 self.logger.record_mean(f"{self.prefix}/ep_rew_{agent}", value)
+            # Competing teams (MPE2's adversaries against good agents): each team's return, where there are several
+            teams = team_returns(agent_returns)
+            if len(teams) > 1:
+                for team, value in teams.items():
+                    self.logger.record_mean(f"{self.prefix}/ep_rew_team_{team}", value)
             metrics = joint_episode_metrics(infos, int(first_row), n_agents, self.info_keys, self.per_agent_keys)
             if not metrics:
                 continue

@@ -168,6 +168,38 @@ def quantile_huber_loss(
     return _FusedQuantileHuberLoss.apply(current_quantiles, target_quantiles.detach(), taus.detach(), float(kappa))
 
 
+def mean_anchored_quantile_loss(current_quantiles: th.Tensor, target_quantiles: th.Tensor, kappa: float = 1.0) -> th.Tensor:
+    """
+    The quantile Huber loss on the quantiles' deviations from their mean, plus the scalar critic's TD loss on the mean.
+
+    With n current quantiles z_j, their mean z̄ and m target samples t_k with mean t̄:
+    ``loss = qr(z, t) + n * huber_kappa(t̄ - z̄) / (2 kappa)``, where ``qr`` is ``quantile_huber_loss`` but its gradient
+    reaches z only through z_j - z̄ (the part that keeps the mean fixed: d/dz_i = g_i - mean_j g_j). So the mean moves
+    only with the TD error of the mean, as a scalar critic's value does (the second term is a one-quantile critic's loss
+    at tau 1/2, times n), and the quantile regression shapes the spread around it.
+
+    Why: the mean of quantile regression's midpoints is not the mean of the distribution, and it moves with the signs
+    of the pairwise errors rather than their sizes (robust to rare large outcomes, which a risk-neutral actor must
+    count). With this loss, an actor maximising the mean (CVaR at alpha 1) follows the same value as with a scalar
+    critic, while CVaR_alpha < 1 still reads the lower quantiles. With one quantile it is ``quantile_huber_loss``.
+
+    :param current_quantiles: the critic's quantiles, shape (..., n)
+    :param target_quantiles: samples of the target distribution (treated as constants), shape (..., m)
+    :param kappa: Huber threshold (> 0)
+    :return: loss per leading index, shape (...)
+    """
+    n_quantiles = current_quantiles.shape[-1]
+    if n_quantiles == 1:
+        return quantile_huber_loss(current_quantiles, target_quantiles, kappa=kappa)
+    means = current_quantiles.mean(dim=-1, keepdim=True)
+    # the same values; the gradient without its component along the mean
+    deviations_only = current_quantiles - means + means.detach()
+    shape_loss = quantile_huber_loss(deviations_only, target_quantiles, kappa=kappa)
+    mean_error = target_quantiles.detach().mean(dim=-1) - means.squeeze(-1)
+    mean_loss = th.nn.functional.huber_loss(mean_error, th.zeros_like(mean_error), reduction="none", delta=kappa) / kappa
+    return shape_loss + 0.5 * n_quantiles * mean_loss
+
+
 def cvar_n_lowest(n_quantiles: int, alpha: float) -> int:
     """
     How many of the lowest quantiles CVaR_alpha averages: ceil(alpha * n), at least 1.

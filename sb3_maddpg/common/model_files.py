@@ -81,6 +81,8 @@ def _allowed_bases() -> tuple[type, ...]:
     from stable_baselines3.common.type_aliases import TrainFreq, TrainFrequencyUnit
     from stable_baselines3.common.utils import ConstantSchedule, FloatSchedule, LinearSchedule
 
+    from sb3_maddpg.common.agent_spaces import AgentSpaces
+
     schedules: tuple[type, ...] = (ConstantSchedule, FloatSchedule, LinearSchedule)
     try:
         from rl_zoo3.utils import SimpleLinearSchedule
@@ -95,6 +97,7 @@ def _allowed_bases() -> tuple[type, ...]:
         np.generic,
         np.dtype,
         Space,
+        AgentSpaces,
         ReplayBuffer,
         ActionNoise,
         TrainFreq,

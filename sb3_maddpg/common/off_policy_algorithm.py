@@ -40,6 +40,7 @@ from stable_baselines3.common.utils import should_collect_more_steps
 from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_maddpg.common.actions import SUPPORTED_ACTION_SPACES, action_width, is_discrete
+from sb3_maddpg.common.agent_spaces import AgentSpaces
 from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
@@ -224,6 +225,8 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
                 )
         self.n_agents: int | None = n_agents
         self.agent_names: list[str] | None = None
+        # Each agent's own spaces where they differ (the VecEnv's are then padded); None when all agents share them
+        self.agent_spaces: AgentSpaces | None = None
         if self.env is not None:
             self._read_agents(self.env, n_agents)
             self._check_action_noise(action_noise, self.env.num_envs)
@@ -262,6 +265,14 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
                 f"the VecEnv has {env.num_envs} rows, which is not a multiple of n_agents={n_agents}; "
                 "rows must be agent-major inside each copy (row = copy * n_agents + agent)"
             )
+        env_agent_spaces = getattr(env, "agent_spaces", None)
+        if self.agent_names is not None and env_agent_spaces != self.agent_spaces:
+            # a model that knows its team's spaces (loaded, or set_env) on a VecEnv whose agents' spaces differ
+            raise ValueError(
+                f"this {type(self).__name__} model's agents have the spaces {self.agent_spaces or 'of the VecEnv'}, "
+                f"but the VecEnv's agents have {env_agent_spaces or 'its spaces'}"
+            )
+        self.agent_spaces = env_agent_spaces
         self.n_agents = int(n_agents)
         if names is not None and len(names) == self.n_agents:
             names = [str(name) for name in names]
@@ -349,9 +360,12 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         """
         if is_agent_dict(observation):
             assert self.agent_names is not None
-            rows, agents = rows_from_agent_dict(observation, self.agent_names)  # type: ignore[arg-type]
+            padded_shape = tuple(self.observation_space.shape) if self.agent_spaces is not None else None  # type: ignore[arg-type]
+            rows, agents = rows_from_agent_dict(observation, self.agent_names, padded_shape)  # type: ignore[arg-type]
             actions, state = self.predict(rows, state, episode_start, deterministic)
-            return {agent: actions[row] for row, agent in enumerate(self.agent_names) if agent in agents}, state
+            return {
+                agent: self._own_action(row, actions[row]) for row, agent in enumerate(self.agent_names) if agent in agents
+            }, state
         names = getattr(observation, "possible_agents", None)
         if names is not None:
             self.check_team(list(names), "the observations' VecEnv")
@@ -365,6 +379,37 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
             if observation.dtype.kind == "f" and not np.isfinite(observation).all():
                 raise ValueError(f"predict: the observations hold NaN or infinite values ({_first_non_finite(observation)})")
         return super().predict(observation, state, episode_start, deterministic)
+
+    def _own_action(self, agent: int, action: np.ndarray) -> np.ndarray:
+        """Agent ``agent``'s action in its own space: a padded Box action cut to the agent's width."""
+        if self.agent_spaces is None or is_discrete(self.action_space):
+            return action
+        return action[: int(self.agent_spaces.action_widths[agent])]
+
+    def _mask_padded_actions(self, action: np.ndarray, buffer_action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """
+        For agents with action spaces of their own: no padded entry reaches the replay buffer. Box: the padded
+        entries (random, or exploration noise) become 0. Discrete: a random action beyond an agent's n is drawn
+        again from the agent's own actions (uniformly, with the action space's generator).
+
+        :param action: the env's actions (rows)
+        :param buffer_action: the actions to store (rows)
+        :return: both, masked
+        """
+        if self.agent_spaces is None:
+            return action, buffer_action
+        assert self.n_agents is not None
+        widths = np.tile(self.agent_spaces.action_widths, len(action) // self.n_agents)  # (rows,)
+        if is_discrete(self.action_space):
+            start = int(self.action_space.start)  # type: ignore[attr-defined]
+            invalid = np.asarray(action) - start >= widths
+            if invalid.any():
+                action = np.array(action, copy=True)
+                action[invalid] = start + self.action_space.np_random.integers(0, widths[invalid])
+            return action, action
+        padded = np.arange(buffer_action.shape[-1])[None, :] >= widths[:, None]
+        buffer_action = np.where(padded, 0.0, buffer_action).astype(buffer_action.dtype, copy=False)
+        return self.policy.unscale_action(buffer_action), buffer_action
 
     # ------------------------------------------------------------------------------------------------------------
     # Building: the team, the replay buffer, the exploration noise and the policy
@@ -406,6 +451,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
             self.action_space,
             self.lr_schedule,
             n_agents=self.n_agents,
+            **({} if self.agent_spaces is None else {"agent_spaces": self.agent_spaces}),
             **self._policy_arguments(),
             **self.policy_kwargs,
         )
@@ -472,7 +518,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         :return: the actions to take in the env and the [-1, 1] actions to store in the replay buffer
         """
         if self.num_timesteps < learning_starts or not isinstance(self.action_space, spaces.Box):
-            return super()._sample_action(learning_starts, action_noise, n_envs)
+            return self._mask_padded_actions(*super()._sample_action(learning_starts, action_noise, n_envs))
         assert self._last_obs is not None, "self._last_obs was not set"
         self.policy.set_training_mode(False)
         observations, _ = self.policy.obs_to_tensor(self._last_obs)
@@ -480,7 +526,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
             scaled_action = self.policy._predict(observations).cpu().numpy().reshape((-1, *self.action_space.shape))
         if action_noise is not None:
             scaled_action = np.clip(scaled_action + action_noise(), -1, 1)
-        return self.policy.unscale_action(scaled_action), scaled_action
+        return self._mask_padded_actions(self.policy.unscale_action(scaled_action), scaled_action)
 
     def collect_rollouts(
         self,

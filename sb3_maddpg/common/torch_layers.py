@@ -188,6 +188,8 @@ class MultiAgentFeatures(nn.Module):
     :param features_extractor_kwargs: keyword arguments of the extractor
     :param normalize_images: whether to divide image observations by 255
     :param shared: one extractor for all agents
+    :param observation_mask: (N, *obs_shape) booleans marking each agent's own entries of padded observations (agents
+        with spaces of their own); the others are set to 0 before any extractor reads them. None: nothing is padded
     """
 
     def __init__(
@@ -198,8 +200,11 @@ class MultiAgentFeatures(nn.Module):
         features_extractor_kwargs: dict[str, Any] | None = None,
         normalize_images: bool = True,
         shared: bool = False,
+        observation_mask: th.Tensor | None = None,
     ) -> None:
         super().__init__()
+        self.observation_mask: th.Tensor | None
+        self.register_buffer("observation_mask", observation_mask, persistent=False)
         kwargs = features_extractor_kwargs or {}
         self.observation_space = observation_space
         self.n_agents = n_agents
@@ -225,6 +230,9 @@ class MultiAgentFeatures(nn.Module):
         :param observations: (B, N, *obs_shape), raw (e.g. uint8 images)
         :return: features (B, N, F)
         """
+        if self.observation_mask is not None:
+            # Padding is a constant 0, not data: it moves no feature and trains no weight
+            observations = observations.masked_fill(~self.observation_mask, 0)
         obs = preprocess_obs(observations, self.observation_space, normalize_images=self.normalize_images)
         assert isinstance(obs, th.Tensor)
         batch_size, n_agents = obs.shape[:2]
@@ -352,17 +360,18 @@ class BatchedMlp(nn.Module):
     def _model_major(self, x: th.Tensor) -> th.Tensor:
         return self.model_major_from(x, start=0)
 
-    def model_major_from(self, x: th.Tensor, start: int, models: slice | None = None) -> th.Tensor:
+    def model_major_from(self, x: th.Tensor, start: int, models: slice | None = None, stop: int | None = None) -> th.Tensor:
         """
-        The layers ``net[start:]`` on model-major inputs (a caller that computes the first layer its own way
+        The layers ``net[start:stop]`` on model-major inputs (a caller that computes the first layer its own way
         continues here with ``start=1``).
 
         :param x: (M, B, width) input of layer ``start``
         :param start: index of the first layer to apply
         :param models: the models to evaluate (all when None), M of them
-        :return: (M, B, output_dim)
+        :param stop: index of the layer to stop before (None: through the output)
+        :return: (M, B, output_dim), or the input of layer ``stop``
         """
-        for layer in self.net[start:]:
+        for layer in self.net[start:stop]:
             x = layer.forward_model_major(x, models) if isinstance(layer, BatchedLinear) else layer(x)
         return x
 

@@ -245,10 +245,16 @@ def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
         raise ValueError(
             f"share_actor is an argument of {algorithm}, not a policy kwarg: use {algorithm}(..., share_actor=True)"
         )
+    if isinstance(policy_kwargs, dict) and "mean_anchored_quantiles" in policy_kwargs:
+        raise ValueError(
+            f"mean_anchored_quantiles is an argument of {algorithm} (it sets the loss and the critics' mean head), "
+            f"not a policy kwarg: use {algorithm}(..., mean_anchored_quantiles=True)"
+        )
     actor_reg = arguments["actor_reg"]
     if isinstance(actor_reg, bool) or not isinstance(actor_reg, int | float) or not actor_reg >= 0.0:
         raise ValueError(f"actor_reg must be a number >= 0 (0 turns the penalty off), got {actor_reg!r}")
     check_gumbel_temperature(arguments["gumbel_temperature"])
+    check_bool("mean_anchored_quantiles", arguments["mean_anchored_quantiles"])
     check_bool("cuda_graph", arguments["cuda_graph"])
     check_bool("bf16_autocast", arguments["bf16_autocast"])
     check_int("policy_delay", arguments["policy_delay"], 1)

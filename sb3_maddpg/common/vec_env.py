@@ -10,39 +10,12 @@ from typing import Any
 
 import numpy as np
 import supersuit as ss
-from gymnasium import spaces
 from pettingzoo.utils.env import ParallelEnv
 from pettingzoo.utils.wrappers import BaseParallelWrapper
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecEnvWrapper
 from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, VecEnvIndices, VecEnvStepReturn
 
-from sb3_maddpg.common.actions import check_action_space
-
-
-def check_multiagent_spaces(parallel_env: ParallelEnv) -> tuple[spaces.Box, spaces.Box | spaces.Discrete]:
-    """
-    Check that every agent of a ParallelEnv has the same Box observation space and the same Box or Discrete action
-    space.
-
-    :param parallel_env: the environment
-    :return: the shared observation space and action space
-    """
-    agents = list(getattr(parallel_env, "possible_agents", []))
-    if not agents:
-        raise ValueError("the ParallelEnv must list its agents in `possible_agents` (at least one)")
-    obs_space = parallel_env.observation_space(agents[0])
-    act_space = parallel_env.action_space(agents[0])
-    if not isinstance(obs_space, spaces.Box):
-        raise TypeError(f"MADDPG accepts Box observation spaces (vectors or images), got {obs_space} for {agents[0]!r}")
-    check_action_space(act_space, f"MADDPG (agent {agents[0]!r})")
-    for agent in agents[1:]:
-        if parallel_env.observation_space(agent) != obs_space or parallel_env.action_space(agent) != act_space:
-            raise ValueError(
-                "all agents must share one observation space and one action space; "
-                f"{agents[0]!r} has {obs_space} / {act_space} but {agent!r} has "
-                f"{parallel_env.observation_space(agent)} / {parallel_env.action_space(agent)}"
-            )
-    return obs_space, act_space
+from sb3_maddpg.common.agent_spaces import AgentSpaces, read_agent_spaces
 
 
 class AgentRows(np.ndarray):
@@ -83,12 +56,16 @@ def is_agent_dict(observation: Any) -> bool:
     return isinstance(observation, dict)
 
 
-def rows_from_agent_dict(observations: dict[str, Any], agents: list[str]) -> tuple[AgentRows, set[str]]:
+def rows_from_agent_dict(
+    observations: dict[str, Any], agents: list[str], padded_shape: tuple[int, ...] | None = None
+) -> tuple[AgentRows, set[str]]:
     """
     The rows of one environment copy from a PettingZoo observation dict, in the team's row order.
 
     :param observations: agent -> observation, for the agents still in the episode (a subset of ``agents``)
     :param agents: the team, in row order
+    :param padded_shape: for agents with observation spaces of their own, the padded shape: each observation is
+        padded with zeros at the end of each dimension (SuperSuit's ``pad_observations_v0``)
     :return: the rows (an agent missing from the dict gets a row of zeros) and the agents present
     """
     unknown = [str(agent) for agent in observations if agent not in agents]
@@ -97,8 +74,18 @@ def rows_from_agent_dict(observations: dict[str, Any], agents: list[str]) -> tup
             f"expected an observation dict of the team's agents ({', '.join(agents)}), got the keys "
             f"{', '.join(map(str, observations)) or 'none'}"
         )
-    first = np.asarray(next(iter(observations.values())))
-    rows = np.stack([np.asarray(observations[agent]) if agent in observations else np.zeros_like(first) for agent in agents])
+    arrays = {agent: np.asarray(observation) for agent, observation in observations.items()}
+    if padded_shape is not None:
+        for agent, array in arrays.items():
+            if array.ndim != len(padded_shape) or any(
+                size > padded for size, padded in zip(array.shape, padded_shape, strict=True)
+            ):
+                raise ValueError(
+                    f"the observation of {agent!r} has the shape {array.shape}, which does not fit the padded {padded_shape}"
+                )
+            arrays[agent] = np.pad(array, [(0, padded - size) for size, padded in zip(array.shape, padded_shape, strict=True)])
+    first = next(iter(arrays.values()))
+    rows = np.stack([arrays[agent] if agent in arrays else np.zeros_like(first) for agent in agents])
     return tag_team(rows, tuple(agents)), set(observations)
 
 
@@ -232,11 +219,14 @@ class MultiAgentVecEnv(_CopySeeds, VecEnvWrapper):
 
     :param venv: the VecEnv returned by ``supersuit.concat_vec_envs_v1(..., base_class="stable_baselines3")``
     :param possible_agents: agent names, in row order inside a copy
+    :param agent_spaces: each agent's own spaces where they differ (the VecEnv's spaces are then the padded ones);
+        None where all agents share the VecEnv's spaces
     """
 
-    def __init__(self, venv: VecEnv, possible_agents: list[str]) -> None:
+    def __init__(self, venv: VecEnv, possible_agents: list[str], agent_spaces: AgentSpaces | None = None) -> None:
         self.possible_agents = list(possible_agents)
         self.n_agents = len(self.possible_agents)
+        self.agent_spaces = agent_spaces
         if venv.num_envs % self.n_agents != 0:
             raise ValueError(f"the VecEnv has {venv.num_envs} rows, not a multiple of the {self.n_agents} agents")
         self.n_copies = venv.num_envs // self.n_agents
@@ -459,6 +449,7 @@ class SubprocMultiAgentVecEnv(_CopySeeds, VecEnv):
         self.possible_agents: list[str] = self._request(0, "attr", "possible_agents")
         self.n_agents = len(self.possible_agents)
         self.n_copies = n_envs
+        self.agent_spaces: AgentSpaces | None = self._request(0, "attr", "agent_spaces")
         observation_space, action_space = (self._request(0, "attr", name) for name in ("observation_space", "action_space"))
         super().__init__(n_envs * self.n_agents, observation_space, action_space)
         self._base_seed: int | None = None
@@ -613,9 +604,12 @@ def make_multiagent_vec_env(
     (``pettingzoo_env_to_vec_env_v1`` then ``concat_vec_envs_v1(..., base_class="stable_baselines3")``).
 
     The VecEnv has ``n_envs * n_agents`` rows, agent-major inside each copy (row = copy * n_agents + agent), and the
-    attributes ``n_agents``, ``n_copies`` and ``possible_agents``. See ``MultiAgentVecEnv`` for seeding, infos and
-    episode statistics. All agents must share one Box observation space and one action space, Box or Discrete (a
-    Discrete env receives one integer per row).
+    attributes ``n_agents``, ``n_copies``, ``possible_agents`` and ``agent_spaces``. See ``MultiAgentVecEnv`` for
+    seeding, infos and episode statistics. Observation spaces are Boxes (vectors or images), action spaces Box or
+    Discrete (a Discrete env receives one integer per row). Agents may have spaces of their own (MPE2's
+    ``simple_speaker_listener``, ``simple_adversary``, ...): the VecEnv's spaces are then the padded ones of
+    SuperSuit's ``pad_observations_v0`` and ``pad_action_space_v0``, and ``agent_spaces``
+    (:class:`~sb3_maddpg.common.agent_spaces.AgentSpaces`) tells the algorithm which entries are each agent's own.
 
     :param env_fn: function returning a PettingZoo ParallelEnv, e.g. ``uav_coverage_v0.parallel_env``
     :param n_envs: number of environment copies
@@ -644,7 +638,7 @@ def make_multiagent_vec_env(
             f"env_fn must return a PettingZoo ParallelEnv, got {type(parallel_env).__name__}; "
             "for an AEC env use pettingzoo.utils.conversions.aec_to_parallel"
         )
-    check_multiagent_spaces(parallel_env)
+    agent_spaces = read_agent_spaces(parallel_env)
     venv: MultiAgentVecEnv | SubprocMultiAgentVecEnv
     if subproc:
         # The env was built and checked here, where its errors are readable, before any worker process starts
@@ -655,9 +649,13 @@ def make_multiagent_vec_env(
             venv.seed(seed)
         return venv
     possible_agents = list(parallel_env.possible_agents)
+    if not agent_spaces.homogeneous:
+        # One layout for all rows: SuperSuit pads observations with zeros and actions to the widest agent's, and
+        # cuts each agent's action back to its own space before the env (the networks mask the padded entries)
+        parallel_env = ss.pad_action_space_v0(ss.pad_observations_v0(parallel_env))
     markov_env = ss.pettingzoo_env_to_vec_env_v1(_SeparateResetInfos(parallel_env))
     sb3_env = ss.concat_vec_envs_v1(markov_env, int(n_envs), num_cpus=0, base_class="stable_baselines3")
-    venv = MultiAgentVecEnv(sb3_env, possible_agents)
+    venv = MultiAgentVecEnv(sb3_env, possible_agents, None if agent_spaces.homogeneous else agent_spaces)
     if seed is not None:
         venv.seed(seed)
     return venv

@@ -14,7 +14,7 @@ from stable_baselines3.common.utils import FloatSchedule, get_parameters_by_name
 
 from sb3_maddpg.common.actions import straight_through_gumbel_softmax
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
-from sb3_maddpg.common.distributional import cvar, quantile_huber_loss
+from sb3_maddpg.common.distributional import cvar, mean_anchored_quantile_loss, quantile_huber_loss
 from sb3_maddpg.common.graphed_update import GraphedUpdate, set_learning_rate
 from sb3_maddpg.common.noise import current_noise_std
 from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
@@ -108,6 +108,13 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         Discrete actions: lower makes the soft sample whose gradient is used closer to the one-hot sample (less
         biased, noisier gradient), higher smoother; it changes neither the sampled actions nor anything with Box
         actions (default 1.0, as in the MADDPG paper's code)
+    :param mean_anchored_quantiles: with ``n_quantiles > 1``: each critic network has a mean output of its own
+        beside the quantiles' deviations from it (quantiles = mean + deviations - their mean); the mean is fitted with
+        the scalar critic's TD loss (towards the mean of the target quantiles) and the quantile Huber loss fits only
+        the deviations, through the output layer alone (``mean_anchored_quantile_loss``). The layers below and the
+        encoders then learn as a scalar critic's do, and a risk-neutral actor (``cvar_alpha=1``) follows the same value;
+        CVaR_alpha < 1 reads the lower quantiles. False, the default, is QR-DQN's loss on plain quantile outputs; with
+        one quantile the two are the same
     :param share_actor: one actor shared by all agents instead of one actor per agent
     :param cuda_graph: capture each kind of gradient step (critics only; critics, actors and targets) as a CUDA
         graph on its first use and replay it afterwards: one launch per update instead of hundreds of kernel
@@ -162,6 +169,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         target_policy_noise: float = 0.0,
         target_noise_clip: float = 0.5,
         gumbel_temperature: float = 1.0,
+        mean_anchored_quantiles: bool = False,
         share_actor: bool = False,
         cuda_graph: bool = False,
         bf16_autocast: bool = False,
@@ -186,6 +194,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
                 target_policy_noise=target_policy_noise,
                 target_noise_clip=target_noise_clip,
                 gumbel_temperature=gumbel_temperature,
+                mean_anchored_quantiles=mean_anchored_quantiles,
                 share_actor=share_actor,
                 cuda_graph=cuda_graph,
                 bf16_autocast=bf16_autocast,
@@ -223,6 +232,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         self.target_policy_noise = float(target_policy_noise)
         self.target_noise_clip = float(target_noise_clip)
         self.gumbel_temperature = float(gumbel_temperature)
+        self.mean_anchored_quantiles = mean_anchored_quantiles
         self.share_actor = share_actor
         if cuda_graph and self.device.type != "cuda":
             raise ValueError(
@@ -236,7 +246,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             self._setup_model()
 
     def _policy_arguments(self) -> dict[str, Any]:
-        return dict(share_actor=self.share_actor)
+        return dict(share_actor=self.share_actor, mean_anchored_quantiles=self.mean_anchored_quantiles)
 
     def _setup_model(self) -> None:
         super()._setup_model()
@@ -297,10 +307,15 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
 
         # Each agent's observation is encoded once; every critic reads all encodings
         features = self.critic.encode(replay_data.observations)  # (B, N, F)
-        all_quantiles = self.critic.all_quantiles_from_features(features, replay_data.actions)  # (n_critics, B, N, n_q)
-        # Quantile regression (QR-DQN): quantile Huber loss, kappa = 1, at the midpoints; mean over the batch
-        # (in float32 also under bf16 autocast); each critic network is fitted to the same target
-        losses = [quantile_huber_loss(quantiles.float(), target_quantiles.float()).mean(dim=0) for quantiles in all_quantiles]
+        # With mean-anchored quantiles, the deviations' loss trains only the output layer: the layers below and the
+        # encoders learn from the mean's TD error alone, as a scalar critic's do
+        all_quantiles = self.critic.all_quantiles_from_features(
+            features, replay_data.actions, shape_gradient=not self.mean_anchored_quantiles
+        )  # (n_critics, B, N, n_q)
+        # Quantile regression (QR-DQN): quantile Huber loss, kappa = 1, at the midpoints (or its mean-anchored form);
+        # mean over the batch (in float32 also under bf16 autocast); each critic network is fitted to the same target
+        loss_fn = mean_anchored_quantile_loss if self.mean_anchored_quantiles else quantile_huber_loss
+        losses = [loss_fn(quantiles.float(), target_quantiles.float()).mean(dim=0) for quantiles in all_quantiles]
         return sum(losses[1:], losses[0]), all_quantiles[0], features  # (N,), (B, N, n_q), (B, N, F)
 
     def actor_loss(
@@ -327,7 +342,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             policy_actions = th.tanh(preactivations)
         # Critic i scores the batch's joint action with a_i = mu_i(o_i) in place of the batch's a_i
         quantiles = self.critic.quantiles_with_own_actions(features, replay_data.actions, policy_actions)  # (B, N, n_q)
-        regularisation = preactivations.float().pow(2).mean(dim=(0, 2))  # (N,)
+        regularisation = self.actor.agent_mean(preactivations.float().pow(2))  # (N,), over each agent's own entries
         return -cvar(quantiles.float(), self.cvar_alpha).mean(dim=0) + self.actor_reg * regularisation
 
     def _clip_gradients(self, module: th.nn.Module) -> None:
@@ -388,11 +403,11 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
                     saturated = (th.softmax(preactivations, dim=-1).amax(dim=-1) > 0.99).float().mean(dim=0)
                 else:
                     # Saturation: where tanh passes (almost) no gradient, an actor can get stuck at a bound
-                    saturated = (preactivations.abs() > _SATURATED_PREACTIVATION).float().mean(dim=(0, 2))
+                    saturated = self.actor.agent_mean((preactivations.abs() > _SATURATED_PREACTIVATION).float())
                 stats = stats._replace(
                     actor_loss=actor_loss.detach(),
                     actor_saturation=saturated,
-                    actor_preactivation=preactivations.abs().mean(dim=(0, 2)),
+                    actor_preactivation=self.actor.agent_mean(preactivations.abs()),
                 )
 
         if update_targets:

@@ -10,8 +10,12 @@ from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
 from sb3_maddpg.common.actions import action_width, check_action_space, gumbel_max_sample, is_discrete, one_hot_argmax
+from sb3_maddpg.common.agent_spaces import AgentSpaces
 from sb3_maddpg.common.torch_layers import BatchedMlp, MultiAgentFeatures, ReportCNN
 from sb3_maddpg.common.validation import check_policy_arguments
+
+# The logit of a padded Discrete action: exp(-1e4) is 0 in every float type, and it stays finite (no inf - inf)
+_MASKED_LOGIT = -1e4
 
 
 class MultiAgentActor(nn.Module):
@@ -36,6 +40,10 @@ class MultiAgentActor(nn.Module):
         actor's MLPs then take the critic's encodings as constants: the critic's loss alone trains the encoders).
         Borrowed, not owned: they are not among the actor's parameters, modules or state dict. None (the default)
         gives the actor its own encoders, trained by the actor's loss
+    :param observation_mask: for agents with spaces of their own, (N, *obs_shape) booleans marking each agent's own
+        observation entries (the others are padding, set to 0 before the encoders); None when nothing is padded
+    :param action_mask: (N, action width) booleans marking each agent's own action entries (Box) or actions
+        (Discrete); the actor outputs 0 in the others (Box) or never picks them (their logits are masked out)
     """
 
     def __init__(
@@ -50,10 +58,14 @@ class MultiAgentActor(nn.Module):
         normalize_images: bool,
         shared: bool = False,
         critic_features: MultiAgentFeatures | None = None,
+        observation_mask: th.Tensor | None = None,
+        action_mask: th.Tensor | None = None,
     ) -> None:
         super().__init__()
         self.n_agents = n_agents
         self.discrete = is_discrete(action_space)
+        self.action_mask: th.Tensor | None
+        self.register_buffer("action_mask", action_mask, persistent=False)
         self.reads_critic_features = critic_features is not None
         if critic_features is None:
             self.features = MultiAgentFeatures(
@@ -63,6 +75,7 @@ class MultiAgentActor(nn.Module):
                 features_extractor_kwargs,
                 normalize_images,
                 shared=shared,
+                observation_mask=observation_mask,
             )
         else:
             # Kept out of nn.Module's registry: the critic's optimizer, soft update and state dict own these weights
@@ -88,8 +101,32 @@ class MultiAgentActor(nn.Module):
             if critic_features is None:
                 with th.no_grad():
                     critic_features = self.features(observations)
-            return self.mu(critic_features.detach())
-        return self.mu(self.features(observations))
+            return self.own_entries(self.mu(critic_features.detach()))
+        return self.own_entries(self.mu(self.features(observations)))
+
+    def own_entries(self, preactivations: th.Tensor) -> th.Tensor:
+        """
+        Keep each agent's own action entries: with padded action spaces, the others become 0 (Box: a tanh of 0, an
+        action of 0 that SuperSuit cuts off before the env) or a logit of -1e4 (Discrete: a probability of 0).
+
+        :param preactivations: (B, N, action width)
+        :return: the same shape; ``preactivations`` itself when nothing is padded
+        """
+        if self.action_mask is None:
+            return preactivations
+        return preactivations.masked_fill(~self.action_mask, _MASKED_LOGIT if self.discrete else 0.0)
+
+    def agent_mean(self, values: th.Tensor) -> th.Tensor:
+        """
+        Each agent's mean of a per-entry statistic of its outputs over the batch and its own entries.
+
+        :param values: (B, N, action width), e.g. the squared preactivations
+        :return: (N,)
+        """
+        if self.action_mask is None:
+            return values.mean(dim=(0, 2))
+        own = self.action_mask.to(values.dtype)
+        return (values * own).sum(dim=(0, 2)) / (own.sum(dim=1) * values.shape[0])
 
     def squash(self, preactivations: th.Tensor) -> th.Tensor:
         """
@@ -136,6 +173,14 @@ class MultiAgentQuantileCritic(nn.Module):
     :param features_extractor_kwargs: its keyword arguments
     :param normalize_images: divide image observations by 255
     :param n_critics: quantile networks per agent (1 for MADDPG, 2 for MATD3's twin critics)
+    :param observation_mask: (N, *obs_shape) booleans marking each agent's own observation entries, or None (see
+        ``MultiAgentActor``)
+    :param action_mask: (N, action width) booleans marking each agent's own action entries, or None: the critics read
+        0 in the others, whatever the batch or the target policy smoothing put there
+    :param mean_head: with ``n_quantiles > 1``, each network outputs its mean mu and n deviations d_j from one more
+        output row, and its quantiles are mu + d_j - mean(d): the mean is a value of its own, and the deviations (the
+        distribution's shape) can be trained without moving the layers that the mean is computed from
+        (``shape_gradient=False`` in ``all_quantiles_from_features``). MADDPG's ``mean_anchored_quantiles``
     """
 
     def __init__(
@@ -150,17 +195,29 @@ class MultiAgentQuantileCritic(nn.Module):
         features_extractor_kwargs: dict[str, Any],
         normalize_images: bool,
         n_critics: int = 1,
+        observation_mask: th.Tensor | None = None,
+        action_mask: th.Tensor | None = None,
+        mean_head: bool = False,
     ) -> None:
         super().__init__()
         self.n_agents = n_agents
         self.n_quantiles = n_quantiles
         self.n_critics = n_critics
+        self.mean_head = mean_head and n_quantiles > 1
         self.features = MultiAgentFeatures(
-            observation_space, n_agents, features_extractor_class, features_extractor_kwargs, normalize_images
+            observation_space,
+            n_agents,
+            features_extractor_class,
+            features_extractor_kwargs,
+            normalize_images,
+            observation_mask=observation_mask,
         )
+        self.action_mask: th.Tensor | None
+        self.register_buffer("action_mask", action_mask, persistent=False)
         self.action_dim = action_width(action_space)
         input_dim = n_agents * (self.features.features_dim + self.action_dim)
-        self.quantile_nets = BatchedMlp(n_critics * n_agents, input_dim, n_quantiles, net_arch, activation_fn)
+        n_outputs = n_quantiles + 1 if self.mean_head else n_quantiles
+        self.quantile_nets = BatchedMlp(n_critics * n_agents, input_dim, n_outputs, net_arch, activation_fn)
         # The first network of each agent: models 0 .. N-1
         self._first_critics = slice(0, n_agents)
 
@@ -181,28 +238,29 @@ class MultiAgentQuantileCritic(nn.Module):
         :return: quantiles (B, N, n_quantiles), ``[:, i]`` from critic i
         """
         batch_size, n_agents = features.shape[:2]
+        actions = self._own_actions(actions)
         if actions.dim() == 3:
             # Every critic reads the same input: one (B, N*F + N*A) tensor, broadcast to the critics without a copy
             hidden = self._first_layer(self._joint_input(features, actions), self._first_critics)
-            return self.quantile_nets.model_major_from(hidden, start=1, models=self._first_critics).transpose(0, 1)
+            return self._quantiles_from(hidden, start=1, models=self._first_critics).transpose(0, 1)
         joint_features = features.flatten(1).unsqueeze(1).expand(batch_size, n_agents, -1)
         # (B, N_critics, N*F + N*A)
         critic_inputs = th.cat([joint_features, actions.flatten(2)], dim=2)
-        return self.quantile_nets.model_major_from(
-            critic_inputs.transpose(0, 1), start=0, models=self._first_critics
-        ).transpose(0, 1)
+        return self._quantiles_from(critic_inputs.transpose(0, 1), start=0, models=self._first_critics).transpose(0, 1)
 
-    def all_quantiles_from_features(self, features: th.Tensor, actions: th.Tensor) -> th.Tensor:
+    def all_quantiles_from_features(self, features: th.Tensor, actions: th.Tensor, shape_gradient: bool = True) -> th.Tensor:
         """
         Every network of every agent's critic on the joint actions ``actions``.
 
         :param features: (B, N, F) from ``encode``
         :param actions: joint actions seen by every critic, (B, N, A)
+        :param shape_gradient: with a mean head, False keeps the gradient of the deviations out of every layer but the
+            output layer (and out of the encoders): only the mean trains the layers it is computed from
         :return: quantiles (n_critics, B, N, n_quantiles), ``[c, :, i]`` from network c of critic i
         """
         batch_size, n_agents = features.shape[:2]
-        hidden = self._first_layer(self._joint_input(features, actions))
-        quantiles = self.quantile_nets.model_major_from(hidden, start=1)  # (n_critics * N, B, n_q), model-major
+        hidden = self._first_layer(self._joint_input(features, self._own_actions(actions)))
+        quantiles = self._quantiles_from(hidden, start=1, shape_gradient=shape_gradient)  # (n_critics * N, B, n_q)
         return quantiles.view(self.n_critics, n_agents, batch_size, -1).transpose(1, 2)
 
     def quantiles_with_own_actions(self, features: th.Tensor, actions: th.Tensor, own_actions: th.Tensor) -> th.Tensor:
@@ -220,12 +278,39 @@ class MultiAgentQuantileCritic(nn.Module):
         :return: quantiles (B, N, n_quantiles), ``[:, i]`` from critic i
         """
         n_agents = actions.shape[1]
+        actions, own_actions = self._own_actions(actions), self._own_actions(own_actions)
         change = (own_actions - actions).transpose(0, 1)  # (N, B, A)
         first_action_row = n_agents * features.shape[-1]  # the joint input is [f_1, ..., f_N, a_1, ..., a_N]
         hidden = self.quantile_nets.first_layer.forward_with_block_changes(
             self._joint_input(features, actions), change, start=first_action_row, models=self._first_critics
         )
-        return self.quantile_nets.model_major_from(hidden, start=1, models=self._first_critics).transpose(0, 1)
+        return self._quantiles_from(hidden, start=1, models=self._first_critics).transpose(0, 1)
+
+    def _quantiles_from(
+        self, hidden: th.Tensor, start: int, models: slice | None = None, shape_gradient: bool = True
+    ) -> th.Tensor:
+        """
+        The quantile networks from layer ``start`` on, model-major: (M, B, width) -> (M, B, n_quantiles).
+
+        With a mean head, output 0 is the mean mu and outputs 1..n the deviations d_j: the quantiles are
+        mu + d_j - mean(d), whose mean is mu.
+        """
+        if not self.mean_head:
+            return self.quantile_nets.model_major_from(hidden, start=start, models=models)
+        output_layer = len(self.quantile_nets.net) - 1
+        last_hidden = self.quantile_nets.model_major_from(hidden, start=start, models=models, stop=output_layer)
+        outputs = self.quantile_nets.model_major_from(last_hidden, start=output_layer, models=models)
+        if not shape_gradient:
+            shape_outputs = self.quantile_nets.model_major_from(last_hidden.detach(), start=output_layer, models=models)
+            outputs = th.cat([outputs[..., :1], shape_outputs[..., 1:]], dim=-1)
+        deviations = outputs[..., 1:]
+        return outputs[..., :1] + deviations - deviations.mean(dim=-1, keepdim=True)
+
+    def _own_actions(self, actions: th.Tensor) -> th.Tensor:
+        """Joint actions (B, N, A) or (B, N_critics, N, A) with every padded entry set to 0."""
+        if self.action_mask is None:
+            return actions
+        return actions.masked_fill(~self.action_mask, 0.0)
 
     @staticmethod
     def _joint_input(features: th.Tensor, actions: th.Tensor) -> th.Tensor:
@@ -283,6 +368,11 @@ class MADDPGPolicy(BasePolicy):
     :param normalize_images: divide image observations by 255
     :param optimizer_class: optimizer of actors and critics
     :param optimizer_kwargs: its keyword arguments, without the learning rate
+    :param mean_anchored_quantiles: critics with a mean head (``MultiAgentQuantileCritic``'s ``mean_head``); MADDPG's
+        argument of the same name passes it
+    :param agent_spaces: each agent's own spaces where they differ (``observation_space`` and ``action_space`` are
+        then the padded ones, see ``sb3_maddpg.common.agent_spaces``); the algorithm passes the VecEnv's. None where
+        all agents have ``observation_space`` and ``action_space``
     """
 
     actor: MultiAgentActor
@@ -307,6 +397,8 @@ class MADDPGPolicy(BasePolicy):
         normalize_images: bool = True,
         optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
         optimizer_kwargs: dict[str, Any] | None = None,
+        mean_anchored_quantiles: bool = False,
+        agent_spaces: AgentSpaces | None = None,
     ) -> None:
         if not isinstance(observation_space, spaces.Box):
             raise TypeError(f"MADDPGPolicy accepts a Box observation space (vector or image), got {observation_space}")
@@ -347,6 +439,9 @@ class MADDPGPolicy(BasePolicy):
         self.share_features_extractor = share_features_extractor
         self.n_quantiles = n_quantiles
         self.n_critics = n_critics
+        self.agent_spaces = agent_spaces
+        self.mean_anchored_quantiles = mean_anchored_quantiles
+        observation_mask, action_mask = _padding_masks(agent_spaces, observation_space, action_space, n_agents)
         common = dict(
             observation_space=observation_space,
             action_space=action_space,
@@ -356,8 +451,16 @@ class MADDPGPolicy(BasePolicy):
             features_extractor_kwargs=self.features_extractor_kwargs,
             normalize_images=normalize_images,
         )
-        self.actor_kwargs = dict(common, net_arch=actor_arch, shared=share_actor)
-        self.critic_kwargs = dict(common, net_arch=critic_arch, n_quantiles=n_quantiles, n_critics=n_critics)
+        masks = dict(observation_mask=observation_mask, action_mask=action_mask)
+        self.actor_kwargs = dict(common, net_arch=actor_arch, shared=share_actor, **masks)
+        self.critic_kwargs = dict(
+            common,
+            net_arch=critic_arch,
+            n_quantiles=n_quantiles,
+            n_critics=n_critics,
+            mean_head=mean_anchored_quantiles,
+            **masks,
+        )
         self._build(lr_schedule)
 
     def _build(self, lr_schedule: Schedule) -> None:
@@ -414,6 +517,8 @@ class MADDPGPolicy(BasePolicy):
                 optimizer_kwargs=self.optimizer_kwargs,
                 features_extractor_class=self.features_extractor_class,
                 features_extractor_kwargs=self.features_extractor_kwargs,
+                agent_spaces=self.agent_spaces,
+                mean_anchored_quantiles=self.mean_anchored_quantiles,
             )
         )
         return data
@@ -493,6 +598,8 @@ class CnnPolicy(MADDPGPolicy):
         normalize_images: bool = True,
         optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
         optimizer_kwargs: dict[str, Any] | None = None,
+        mean_anchored_quantiles: bool = False,
+        agent_spaces: AgentSpaces | None = None,
     ) -> None:
         super().__init__(
             observation_space,
@@ -510,4 +617,36 @@ class CnnPolicy(MADDPGPolicy):
             normalize_images=normalize_images,
             optimizer_class=optimizer_class,
             optimizer_kwargs=optimizer_kwargs,
+            mean_anchored_quantiles=mean_anchored_quantiles,
+            agent_spaces=agent_spaces,
         )
+
+
+def _padding_masks(
+    agent_spaces: AgentSpaces | None, observation_space: spaces.Box, action_space: spaces.Space, n_agents: int
+) -> tuple[th.Tensor | None, th.Tensor | None]:
+    """
+    The observation and action masks of agents with spaces of their own, checked against the padded spaces.
+
+    :return: (N, *obs_shape) and (N, action width) booleans; (None, None) when nothing is padded
+    """
+    if agent_spaces is None or agent_spaces.homogeneous:
+        return None, None
+    if not isinstance(agent_spaces, AgentSpaces):
+        raise TypeError(f"agent_spaces must be an AgentSpaces or None, got {type(agent_spaces).__name__}")
+    if agent_spaces.n_agents != n_agents:
+        raise ValueError(f"agent_spaces describes {agent_spaces.n_agents} agents, but n_agents={n_agents}")
+    observation_mask = agent_spaces.observation_mask()
+    obs_shape = tuple(observation_space.shape)
+    if observation_mask.shape[1:] != obs_shape and len(obs_shape) == 3:
+        # Images that SB3 transposed to channel-first (VecTransposeImage): (N, H, W, C) -> (N, C, H, W)
+        observation_mask = observation_mask.transpose(0, 3, 1, 2)
+    if observation_mask.shape[1:] != obs_shape:
+        raise ValueError(
+            f"the agents' padded observation shape {agent_spaces.padded_observation_shape} does not match the "
+            f"observation space {observation_space}"
+        )
+    action_mask = agent_spaces.action_mask()
+    if action_mask.shape[1] != action_width(action_space):
+        raise ValueError(f"the agents' widest action ({action_mask.shape[1]}) does not match the action space {action_space}")
+    return th.as_tensor(observation_mask), th.as_tensor(action_mask)

@@ -179,3 +179,20 @@ register_multiagent_env("simple_spread_v3", "mpe2.simple_spread_v3:parallel_env"
 # The same task with MPE2's default Discrete(5) actions (no-op, left, right, down, up), as in the MADDPG paper: the
 # actors learn through the straight-through Gumbel-softmax (docs/algorithm.md, "Discrete actions").
 register_multiagent_env("simple_spread_discrete_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": False})
+# MPE2's other multi-agent tasks, the MADDPG paper's (Lowe et al. 2017): cooperative (reference, speaker-listener,
+# crypto's alice and bob), competing (adversary, push, tag, world_comm). Each as <task> with continuous actions and
+# <name>_discrete_<version> with MPE2's default Discrete ones; agents with spaces of their own are padded
+# (sb3_maddpg.common.agent_spaces).
+MPE2_TASKS = (
+    "simple_adversary_v3",
+    "simple_crypto_v3",
+    "simple_push_v3",
+    "simple_reference_v3",
+    "simple_speaker_listener_v4",
+    "simple_tag_v3",
+    "simple_world_comm_v3",
+)
+for _task in MPE2_TASKS:
+    _name, _version = _task.rsplit("_", 1)
+    register_multiagent_env(_task, f"mpe2.{_task}:parallel_env", {"continuous_actions": True})
+    register_multiagent_env(f"{_name}_discrete_{_version}", f"mpe2.{_task}:parallel_env", {"continuous_actions": False})

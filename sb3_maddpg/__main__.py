@@ -356,6 +356,21 @@ def run_evaluate(args: argparse.Namespace) -> None:
         probe.close()
         if needs_core and not is_uav_env:
             raise UsageError(f"--baselines: {', '.join(needs_core)} read(s) a UAV coverage simulation; {env_id} has none")
+    if args.team is not None and model_path is None:
+        raise UsageError("--team needs --model: the model acts for the team")
+    if args.opponent != "random":
+        if args.team is None:
+            raise UsageError("--opponent is for competing teams: give --team as well")
+        if not os.path.isfile(args.opponent) or not zipfile.is_zipfile(args.opponent):
+            raise UsageError(f"--opponent: {args.opponent} is neither 'random' nor a saved model (.zip)")
+    if args.team is not None:
+        from sb3_maddpg.common.callbacks import agent_team
+
+        probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
+        teams = sorted({agent_team(str(agent)) for agent in probe.possible_agents})
+        probe.close()
+        if args.team not in teams:
+            raise UsageError(f"--team: {env_id} has no team {args.team!r}; its teams: {', '.join(teams)}")
     _check_writable(args.out, "--out")
     try:
         evaluate_and_report(
@@ -370,6 +385,8 @@ def run_evaluate(args: argparse.Namespace) -> None:
             gif=not args.no_gif,
             verbose=args.verbose,
             baselines=args.baselines,
+            team=args.team,
+            opponent=args.opponent,
         )
     except ModelEnvMismatchError as error:
         raise UsageError(f"--model: {error}") from error
@@ -438,6 +455,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="baselines to run: random, greedy_static (flies to a greedy maximum-coverage layout and hovers), "
         "greedy_step (the greedy of Liu et al., TMC 2020: each step, the best immediate reward of 30 headings and "
         "hovering); the last two on the UAV envs only (default: random and, on the UAV envs, greedy_static)",
+    )
+    evaluate.add_argument(
+        "--team",
+        help="competing teams: the model acts for this team's agents only (e.g. adversary: adversary_0, adversary_1, "
+        "...), --opponent for the others; random actions for the team against the same opponent are run beside it",
+    )
+    evaluate.add_argument(
+        "--opponent",
+        default="random",
+        help="with --team: 'random' (default) or a saved model (.zip) that acts for the other agents",
     )
     evaluate.add_argument("--episodes", type=int, default=10, help="episodes per method (default: 10)")
     evaluate.add_argument("--out", default=os.path.join("results", "evaluation"), help="output folder")

@@ -15,6 +15,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
+from sb3_maddpg.common.callbacks import agent_team
 from sb3_maddpg.common.validation import check_int, check_number
 
 
@@ -370,6 +371,11 @@ class ModelController:
         pass
 
     def act(self, observations: dict[str, np.ndarray], env: ParallelEnv) -> dict[str, np.ndarray]:
+        if getattr(self.model, "agent_names", None) is not None:
+            # A model of this library takes the observation dict itself: each agent's own shapes (agents with spaces
+            # of their own), agents that have left the episode, and its team's order
+            actions, _ = self.model.predict(dict(observations), deterministic=self.deterministic)
+            return {agent: np.asarray(action, dtype=env.action_space(agent).dtype) for agent, action in actions.items()}
         # Row r of the batch goes to actor r mod N: stack in the fixed agent order, not in the dict's order.
         agents = [agent for agent in env.possible_agents if agent in observations]
         batch = np.stack([observations[agent] for agent in agents])
@@ -379,6 +385,37 @@ class ModelController:
             agent: np.asarray(action, dtype=env.action_space(agent).dtype)
             for agent, action in zip(agents, actions, strict=True)
         }
+
+
+class TeamController:
+    """
+    Competing teams: one controller acts for the agents of ``team`` (by PettingZoo's naming, ``adversary_0`` and
+    ``adversary_1`` form the team ``adversary``; ``sb3_maddpg.common.callbacks.agent_team``), another for all other
+    agents, e.g. a trained model's adversaries against random good agents, or against another model's.
+
+    :param team: the team that ``controller`` plays
+    :param controller: acts for the agents of ``team`` (it is asked for all live agents; only theirs are used)
+    :param opponent: acts for the others
+    :param name: label in tables and figures
+    """
+
+    def __init__(self, team: str, controller: "Controller", opponent: "Controller", name: str | None = None) -> None:
+        self.team = team
+        self.controller = controller
+        self.opponent = opponent
+        self.name = name or f"{controller.name} ({team}) vs {opponent.name}"
+
+    def reset(self, env: ParallelEnv, seed: int | None = None) -> None:
+        teams = {agent_team(str(agent)) for agent in env.possible_agents}
+        if self.team not in teams:
+            raise ValueError(f"no agent of the team {self.team!r} in this env; its teams: {', '.join(sorted(teams))}")
+        self.controller.reset(env, seed=seed)
+        self.opponent.reset(env, seed=None if seed is None else seed + 1)
+
+    def act(self, observations: dict[str, np.ndarray], env: ParallelEnv) -> dict[str, np.ndarray]:
+        own = self.controller.act(observations, env)
+        others = self.opponent.act(observations, env)
+        return {agent: own[agent] if agent_team(str(agent)) == self.team else others[agent] for agent in observations}
 
 
 #: The baselines by name, as ``evaluate --baselines`` takes them.

@@ -17,6 +17,7 @@ import numpy as np
 from pettingzoo import ParallelEnv
 
 from sb3_maddpg.common.atomic import atomic_open, atomic_write_text
+from sb3_maddpg.common.callbacks import team_returns
 from sb3_maddpg.evaluation.baselines import Controller
 
 # The report's metrics at the last step of an episode (SPEC §1.5): c_T, f_T, e_T, eta_T.
@@ -77,7 +78,8 @@ def run_episode(
     :param frame_every: keep one rendered frame every this many steps
     :return: the episode-end metrics (``coverage``, ``fairness``, ``energy``, ``energy_efficiency``) and the team's
         ``wall_hits`` and ``disconnections`` where the env reports them, the team ``return`` (sum over agents and
-        steps), each agent's return ``return_<agent>`` and ``length``
+        steps), each agent's return ``return_<agent>``, each team's ``return_team_<team>`` where the agents' names
+        make several teams, and ``length``
     """
     observations, infos = env.reset(seed=seed)
     controller.reset(env, seed=seed)
@@ -117,6 +119,9 @@ def run_episode(
             metrics[key] = float(sum(info.get(key, 0) for info in last_infos))
     metrics["return"] = float(sum(agent_returns.values()))
     metrics.update({f"return_{agent}": value for agent, value in agent_returns.items()})
+    teams = team_returns(agent_returns)
+    if len(teams) > 1:  # competing teams (MPE2's adversaries and good agents): each team's return
+        metrics.update({f"return_team_{team}": value for team, value in teams.items()})
     metrics["length"] = float(step)
     return metrics
 
@@ -229,12 +234,13 @@ def format_table(summary: Sequence[dict[str, Any]]) -> str:
 
 def _table_keys(metrics: dict[str, Any]) -> list[str]:
     """
-    The keys of the printed table, in order: the UAV metrics present, the team return and its worst decile, the
-    length and the hazard events present.
+    The keys of the printed table, in order: the UAV metrics present, the team return, its worst decile and each
+    competing team's return, the length and the hazard events present.
     """
     keys = [key for key in (*METRICS, "return", "length", *HAZARD_COUNTS) if key in metrics]
     if "return" in keys:
-        keys.insert(keys.index("return") + 1, "return_worst_decile")
+        teams = [key for key in metrics if key.startswith("return_team_")]
+        keys[keys.index("return") + 1 : keys.index("return") + 1] = ["return_worst_decile", *teams]
     return keys
 
 

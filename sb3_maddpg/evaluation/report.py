@@ -8,8 +8,9 @@ from typing import Any
 
 import yaml
 
+from sb3_maddpg.common.agent_spaces import read_agent_spaces
 from sb3_maddpg.common.atomic import check_writable_folder
-from sb3_maddpg.evaluation.baselines import Controller, ModelController, make_baselines
+from sb3_maddpg.evaluation.baselines import Controller, ModelController, RandomController, TeamController, make_baselines
 from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
 from sb3_maddpg.evaluation.figures import (
     plot_fairness_vs_coverage,
@@ -137,21 +138,36 @@ def check_model_fits_env(model_path: str | os.PathLike, env_id: str, env_kwargs:
     from sb3_maddpg.zoo.registry import make_multiagent_env
 
     try:
-        data = read_maddpg_data(model_path, ("n_agents", "observation_space", "policy_class"))
+        data = read_maddpg_data(model_path, ("n_agents", "observation_space", "policy_class", "agent_spaces"))
     except (ValueError, FileNotFoundError) as error:
         raise ModelEnvMismatchError(str(error)) from error
     kwargs = {key: value for key, value in env_kwargs.items() if key != "render_mode"}
     probe = make_multiagent_env(env_id, **kwargs)
-    agents = list(probe.possible_agents)
-    observation_space = probe.observation_space(agents[0])
+    layout = read_agent_spaces(probe)
     probe.close()
-    if data.get("n_agents") != len(agents) or data.get("observation_space") != observation_space:
+    if layout.homogeneous:
+        # The model's observation space is the agents' shared one
+        model_observations, env_observations = data.get("observation_space"), layout.observation_spaces[0]
+    else:
+        # Agents with spaces of their own: the model records each agent's (its observation space is the padded one)
+        model_observations, env_observations = data.get("agent_spaces"), layout
+    if data.get("n_agents") != layout.n_agents or model_observations != env_observations:
         raise ModelEnvMismatchError(
-            f"the model was trained with {data.get('n_agents')} agents and observations {data.get('observation_space')}, "
-            f"but {env_id} with {kwargs} has {len(agents)} agents and observations {observation_space}; "
+            f"the model was trained with {data.get('n_agents')} agents and observations {model_observations}, "
+            f"but {env_id} with {kwargs} has {layout.n_agents} agents and observations {env_observations}; "
             "pass the training env's settings with --env-kwargs"
         )
     return data
+
+
+def _load_controller(model_path: str | os.PathLike, env_id: str, env_kwargs: dict[str, Any], device: str) -> ModelController:
+    """A saved model as a controller (``evaluate``'s opponent), named after its file."""
+    algorithm = saved_algorithm(check_model_fits_env(model_path, env_id, env_kwargs).get("policy_class"))
+    try:
+        model = algorithm.load(model_path, device=device)
+    except (AssertionError, KeyError, ValueError, TypeError, RuntimeError) as error:
+        raise ModelEnvMismatchError(f"{model_path} is not a MADDPG model that can be loaded here: {error}") from error
+    return ModelController(model, name=Path(model_path).stem)
 
 
 def evaluate_and_report(
@@ -167,6 +183,8 @@ def evaluate_and_report(
     frame_every: int | None = None,
     verbose: int = 1,
     baselines: Sequence[str] | None = None,
+    team: str | None = None,
+    opponent: str | os.PathLike = "random",
 ) -> dict[str, Any]:
     """
     Run ``n_episodes`` for the model (deterministic actions) and the baselines, print the table and write
@@ -190,6 +208,10 @@ def evaluate_and_report(
     :param baselines: names of the baselines to run beside the model (``random``, ``greedy_static``,
         ``greedy_step``; the last two on the UAV envs only); None for random actions and, on the UAV envs, the
         greedy static placement
+    :param team: competing teams: the model acts for this team's agents only (``adversary`` for ``adversary_0``,
+        ``adversary_1``, ...), ``opponent`` for the others; and, for comparison, random actions for the team against
+        the same opponent. None: the model acts for every agent
+    :param opponent: with ``team``: ``"random"``, or a saved model (.zip) that acts for the other agents
     :return: ``summary``, ``results``, ``table``, ``files`` (name -> path) and ``env_kwargs``
     """
     from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
@@ -214,12 +236,18 @@ def evaluate_and_report(
 
     controllers: list[Controller] = []
     if model_path is not None:
-        algorithm = saved_algorithm(check_model_fits_env(model_path, env_id, kwargs).get("policy_class"))
-        try:
-            model = algorithm.load(model_path, device=device)
-        except (AssertionError, KeyError, ValueError, TypeError, RuntimeError) as error:
-            raise ModelEnvMismatchError(f"{model_path} is not a MADDPG model that can be loaded here: {error}") from error
-        controllers.append(ModelController(model, name=algorithm.__name__.lower()))
+        own_model = _load_controller(model_path, env_id, kwargs, device)
+        own_model.name = type(own_model.model).__name__.lower()
+        controllers.append(own_model)
+    if team is not None:
+        if not controllers:
+            raise ValueError("team= needs a model to act for the team")
+        rival = RandomController() if os.fspath(opponent) == "random" else _load_controller(opponent, env_id, kwargs, device)
+        own = controllers.pop()
+        controllers = [
+            TeamController(team, own, rival),
+            TeamController(team, RandomController(), rival, name=f"random ({team}) vs {rival.name}"),
+        ]
     controllers.extend(make_baselines(baselines, uav_env=core is not None))
     if not controllers:
         raise ValueError("nothing to evaluate: give a model or at least one baseline")

@@ -102,10 +102,17 @@ ENV_KWARGS[fast_b32_q25_anchor]="${ENV_KWARGS[fast_b32]}"; POLICY[fast_b32_q25_a
 for config in hz_classic hz_a1 hz_a05 hz_a025 hz_a01; do
   ENV[$config]=uav_coverage_hazard_cpu_v1; ENV_KWARGS[$config]="${ENV_KWARGS[fast_b32]}"; STEPS[$config]=28000; EPISODES[$config]=100
 done
+# (the 25-quantile critics mean-anchored: fast_b32_q25_anchor's, which learns as fast as the scalar one at alpha 1)
 ALGO[hz_classic]="${ALGO[fast_b32]}"; POLICY[hz_classic]="${POLICY[fast_b32]}"
-ALGO[hz_a1]="${ALGO[fast_b32]}"; ALGO[hz_a05]="${ALGO[fast_b32]%\}}, \"cvar_alpha\": 0.5}"
-ALGO[hz_a025]="${ALGO[fast_b32]%\}}, \"cvar_alpha\": 0.25}"; ALGO[hz_a01]="${ALGO[fast_b32]%\}}, \"cvar_alpha\": 0.1}"
+for alpha in 05 025 01; do  # hz_a05: cvar_alpha 0.5, ...
+  ALGO[hz_a$alpha]="${ALGO[fast_b32_q25_anchor]%\}}, \"cvar_alpha\": 0.${alpha#0}}"
+done
+ALGO[hz_a1]="${ALGO[fast_b32_q25_anchor]}"
 for config in hz_a1 hz_a05 hz_a025 hz_a01; do POLICY[$config]="${POLICY[fast_b32_q25]}"; done
+# The classic critic on the hazardous task with rewards scaled by 0.1 (a crash's energy, 200, is a reward of -20
+# instead of -200): does the critic learn where hz_classic diverged?
+ENV[hz_classic_r01]=uav_coverage_hazard_cpu_v1; ENV_KWARGS[hz_classic_r01]="${ENV_KWARGS[fast_b32]}, \"reward_scale\": 0.1"
+ALGO[hz_classic_r01]="${ALGO[fast_b32]}"; POLICY[hz_classic_r01]="${POLICY[fast_b32]}"; STEPS[hz_classic_r01]=28000; EPISODES[hz_classic_r01]=100
 ENV[fast_shared]=uav_coverage_cpu_v1; ALGO[fast_shared]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
 POLICY[fast_shared]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $encoder}"; STEPS[fast_shared]=28000
 ENV[fast_shared_envs2]=uav_coverage_cpu_v1; ALGO[fast_shared_envs2]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared_envs2]="${ENV_KWARGS[exact_tpn005_g09_mates]}"

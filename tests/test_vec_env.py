@@ -87,3 +87,22 @@ def test_unsupported_envs_get_clear_errors():
         make_multiagent_vec_env(lambda: object())
     with pytest.raises(ValueError, match="n_envs"):
         make_multiagent_vec_env(TargetReachEnv, n_envs=0)
+
+
+class DepartingAgentEnv(TargetReachEnv):
+    """agent_1 leaves after the first step, before the episode ends."""
+
+    def step(self, actions):
+        obs, rewards, terms, truncs, infos = super().step(actions)
+        if self.t == 1 and self.agents:
+            self.agents = [agent for agent in self.agents if agent != "agent_1"]
+            for values in (obs, rewards, terms, truncs, infos):
+                values.pop("agent_1")
+        return obs, rewards, terms, truncs, infos
+
+
+def test_departing_agents_get_a_clear_error():
+    venv = make_multiagent_vec_env(DepartingAgentEnv, seed=0)
+    venv.reset()
+    with pytest.raises(ValueError, match="agents agent_1 have no observation in the middle of an episode: agents that leave"):
+        venv.step(np.zeros((2, 2), np.float32))

@@ -146,7 +146,24 @@ class _SeparateResetInfos(BaseParallelWrapper):
         }
         observations, infos = self.env.reset(seed=seed, options=options)
         self.last_reset_infos = infos
+        self._check_whole_team(observations, "at reset")
         return observations, {agent: {} for agent in observations}
+
+    def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
+        observations, rewards, terminations, truncations, infos = self.env.step(actions)
+        if self.env.agents:  # at an episode's end every agent may leave at once
+            self._check_whole_team(observations, "in the middle of an episode")
+        return observations, rewards, terminations, truncations, infos
+
+    def _check_whole_team(self, observations: dict, when: str) -> None:
+        """Agents that leave before the others (or join late) are not supported yet: say so where it happens."""
+        missing = [agent for agent in self.env.possible_agents if agent not in observations]
+        if missing:
+            raise ValueError(
+                f"agents {', '.join(map(str, missing))} have no observation {when}: agents that leave the episode before "
+                "the others are not supported yet (every agent of possible_agents must act at every step until the "
+                "joint episode ends)"
+            )
 
 
 class _CopySeeds:

@@ -324,7 +324,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
 
     :param args: parsed arguments
     """
-    from sb3_maddpg.evaluation.baselines import BASELINES, UAV_BASELINES
+    from sb3_maddpg.evaluation.baselines import make_baselines
     from sb3_maddpg.evaluation.report import DEFAULT_ENV_ID, ModelEnvMismatchError, evaluate_and_report, find_run_config
     from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
 
@@ -347,15 +347,14 @@ def run_evaluate(args: argparse.Namespace) -> None:
     env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs") or {}
     check_env_kwargs(env_id, {**run_env_kwargs, **env_kwargs}, flag="--env-kwargs")
     if args.baselines is not None:
-        unknown = [name for name in args.baselines if name not in BASELINES]
-        if unknown:
-            raise UsageError(f"--baselines: unknown baseline(s) {', '.join(unknown)}; known: {', '.join(BASELINES)}")
-        needs_core = [name for name in args.baselines if name in UAV_BASELINES]
+        # make_baselines' own checks, before any model is loaded or episode run
         probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
         is_uav_env = getattr(probe, "core", None) is not None
         probe.close()
-        if needs_core and not is_uav_env:
-            raise UsageError(f"--baselines: {', '.join(needs_core)} read(s) a UAV coverage simulation; {env_id} has none")
+        try:
+            make_baselines(args.baselines, uav_env=is_uav_env)
+        except ValueError as error:
+            raise UsageError(f"--baselines: {error} ({env_id})") from error
     if args.team is not None and model_path is None:
         raise UsageError("--team needs --model: the model acts for the team")
     if args.opponent != "random":

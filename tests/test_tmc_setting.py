@@ -194,4 +194,6 @@ def test_evaluate_command_runs_the_chosen_baselines(tmp_path: Path, capsys: pyte
     table = capsys.readouterr().out
     assert table.index("| greedy_step | 1 |") < table.index("| random | 1 |")
     assert "greedy_static" not in table
-    assert "--baselines: unknown baseline(s) greedy" in fails_with([*argv[:5], "greedy"], capsys)
+    assert "--baselines: unknown baseline 'greedy'; known: random" in fails_with([*argv[:5], "greedy"], capsys)
+    non_uav = ["evaluate", "--baselines-only", "--env", "simple_spread_v3", "--baselines", "greedy_step"]
+    assert "'greedy_step' reads the simulation of a UAV coverage env" in fails_with(non_uav, capsys)

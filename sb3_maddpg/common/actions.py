@@ -13,7 +13,6 @@ for the env and a one-hot vector of width n for the critics and the replay buffe
 - the target actors: the one-hot argmax (see ``MADDPG``'s docstring for why).
 """
 
-from numbers import Real
 from typing import Any
 
 import numpy as np
@@ -116,21 +115,3 @@ def straight_through_gumbel_softmax(logits: th.Tensor, temperature: float) -> th
     :return: one-hot samples (..., n), differentiable with respect to ``logits``
     """
     return F.gumbel_softmax(logits.float(), tau=temperature, hard=True)
-
-
-def check_gumbel_temperature(value: Any) -> float:
-    """
-    :param value: the ``gumbel_temperature`` given
-    :return: it as a float
-    :raises TypeError: if it is not a real number
-    :raises ValueError: if it is not finite and > 0
-    """
-    if isinstance(value, bool) or not isinstance(value, Real):
-        raise TypeError(
-            f"gumbel_temperature must be a number > 0 (the Gumbel-softmax temperature, default 1.0), got {value!r}"
-        )
-    if not (np.isfinite(float(value)) and float(value) > 0.0):
-        raise ValueError(
-            f"gumbel_temperature must be a finite number > 0 (the Gumbel-softmax temperature, default 1.0), got {value!r}"
-        )
-    return float(value)

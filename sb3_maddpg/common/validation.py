@@ -15,7 +15,7 @@ from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
-from sb3_maddpg.common.actions import check_action_space, check_gumbel_temperature
+from sb3_maddpg.common.actions import check_action_space
 
 
 def check_int(name: str, value: Any, minimum: int | None = None) -> int:
@@ -253,7 +253,9 @@ def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
     actor_reg = arguments["actor_reg"]
     if isinstance(actor_reg, bool) or not isinstance(actor_reg, int | float) or not actor_reg >= 0.0:
         raise ValueError(f"actor_reg must be a number >= 0 (0 turns the penalty off), got {actor_reg!r}")
-    check_gumbel_temperature(arguments["gumbel_temperature"])
+    check_number(
+        "gumbel_temperature (the Gumbel-softmax temperature, default 1.0)", arguments["gumbel_temperature"], 0.0, low_open=True
+    )
     check_bool("mean_anchored_quantiles", arguments["mean_anchored_quantiles"])
     check_bool("cuda_graph", arguments["cuda_graph"])
     check_bool("bf16_autocast", arguments["bf16_autocast"])

@@ -83,7 +83,7 @@ class AgentSpaces:
         )
 
     def __hash__(self) -> int:
-        return hash((self.observation_spaces, self.action_spaces))
+        return hash(repr(self))
 
     def __repr__(self) -> str:
         agents = ", ".join(

@@ -248,22 +248,55 @@ class BatchedLinear(nn.Module):
     ``n_models`` independent linear layers evaluated with one batched matrix product:
     (B, n_models, in_features) -> (B, n_models, out_features). Each model is initialised like ``nn.Linear``.
 
-    :param n_models: number of independent layers
+    With ``shared_by`` the models share weights: model m uses weight row ``shared_by[m]`` (parameter sharing inside
+    groups of agents), and, with ``own_bias``, a bias of its own, which is what a one-hot model-index input would add
+    to a shared first layer (an agent-index input); without it the bias is shared as well.
+
+    :param n_models: number of layers evaluated (models)
     :param in_features: input size
     :param out_features: output size
+    :param shared_by: for each model, the index of the weight it uses (0 .. number of distinct weights - 1); None:
+        every model its own
+    :param own_bias: with ``shared_by``, each model keeps a bias of its own
     """
 
-    def __init__(self, n_models: int, in_features: int, out_features: int) -> None:
+    def __init__(
+        self,
+        n_models: int,
+        in_features: int,
+        out_features: int,
+        shared_by: tuple[int, ...] | None = None,
+        own_bias: bool = False,
+    ) -> None:
         super().__init__()
         self.n_models = n_models
         self.in_features = in_features
         self.out_features = out_features
-        self.weight = nn.Parameter(th.empty(n_models, in_features, out_features))
-        self.bias = nn.Parameter(th.empty(n_models, out_features))
+        n_weights = n_models if shared_by is None else max(shared_by) + 1
+        self.model_index: th.Tensor | None
+        self.bias_index: th.Tensor | None
+        if shared_by is not None:
+            if len(shared_by) != n_models or set(shared_by) != set(range(n_weights)):
+                raise ValueError(
+                    f"shared_by must give each of the {n_models} models a weight index 0, 1, ..., got {shared_by}"
+                )
+            self.register_buffer("model_index", th.as_tensor(shared_by, dtype=th.long), persistent=False)
+        else:
+            self.register_buffer("model_index", None, persistent=False)
+            own_bias = True
+        self.register_buffer("bias_index", None if own_bias else self.model_index, persistent=False)
+        self.weight = nn.Parameter(th.empty(n_weights, in_features, out_features))
+        self.bias = nn.Parameter(th.empty(n_models if own_bias else n_weights, out_features))
         # nn.Linear's default initialisation, U(-1/sqrt(fan_in), 1/sqrt(fan_in)), for weights and biases
         bound = 1.0 / math.sqrt(in_features) if in_features > 0 else 0.0
         nn.init.uniform_(self.weight, -bound, bound)
         nn.init.uniform_(self.bias, -bound, bound)
+
+    def weights(self) -> tuple[th.Tensor, th.Tensor]:
+        """Each model's weight (n_models, in, out) and bias (n_models, out): views of shared ones are gathered."""
+        weight = self.weight if self.model_index is None else self.weight.index_select(0, self.model_index)
+        bias = self.bias if self.bias_index is None else self.bias.index_select(0, self.bias_index)
+        return weight, bias
 
     def forward(self, x: th.Tensor) -> th.Tensor:
         """
@@ -280,7 +313,9 @@ class BatchedLinear(nn.Module):
         :param models: the models to evaluate (all when None)
         :return: (M, B, out_features)
         """
-        weight, bias = (self.weight, self.bias) if models is None else (self.weight[models], self.bias[models])
+        weight, bias = self.weights()
+        if models is not None:
+            weight, bias = weight[models], bias[models]
         # (M, B, in) @ (M, in, out) + (M, 1, out) -> (M, B, out)
         return th.baddbmm(bias.unsqueeze(1), x, weight)
 
@@ -300,7 +335,8 @@ class BatchedLinear(nn.Module):
         :return: (M, B, out_features)
         """
         n_models, block = changes.shape[0], changes.shape[-1]
-        weight = self.weight if models is None else self.weight[models]
+        weight = self.weights()[0]
+        weight = weight if models is None else weight[models]
         shared = self.forward_model_major(x.unsqueeze(0).expand(n_models, -1, -1), models)
         # own_rows[m] = the rows of model m's weight that read block m, (M, k, out); a strided view
         block_rows = weight[:, start : start + n_models * block].view(n_models, n_models, block, -1)
@@ -308,7 +344,8 @@ class BatchedLinear(nn.Module):
         return th.baddbmm(shared, changes, own_rows)
 
     def extra_repr(self) -> str:
-        return f"n_models={self.n_models}, in_features={self.in_features}, out_features={self.out_features}"
+        shared = "" if self.model_index is None else f", shared weights={self.weight.shape[0]}"
+        return f"n_models={self.n_models}, in_features={self.in_features}, out_features={self.out_features}{shared}"
 
 
 class BatchedMlp(nn.Module):
@@ -323,6 +360,9 @@ class BatchedMlp(nn.Module):
     :param net_arch: hidden layer sizes
     :param activation_fn: activation between layers
     :param squash_output: apply tanh to the output
+    :param shared_by: models that share their weights (``BatchedLinear``'s): model m uses the weights of index
+        ``shared_by[m]`` in every layer, and a first-layer bias of its own (an agent-index input); None: all models
+        independent
     """
 
     def __init__(
@@ -333,14 +373,15 @@ class BatchedMlp(nn.Module):
         net_arch: list[int],
         activation_fn: type[nn.Module] = nn.ReLU,
         squash_output: bool = False,
+        shared_by: tuple[int, ...] | None = None,
     ) -> None:
         super().__init__()
         self.n_models = n_models
         layers: list[nn.Module] = []
         sizes = [input_dim, *net_arch]
-        for in_size, out_size in zip(sizes[:-1], sizes[1:], strict=True):
-            layers += [BatchedLinear(n_models, in_size, out_size), activation_fn()]
-        layers.append(BatchedLinear(n_models, sizes[-1], output_dim))
+        for index, (in_size, out_size) in enumerate(zip(sizes[:-1], sizes[1:], strict=True)):
+            layers += [BatchedLinear(n_models, in_size, out_size, shared_by, own_bias=index == 0), activation_fn()]
+        layers.append(BatchedLinear(n_models, sizes[-1], output_dim, shared_by, own_bias=not net_arch))
         if squash_output:
             layers.append(nn.Tanh())
         self.net = nn.Sequential(*layers)

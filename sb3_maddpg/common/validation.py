@@ -16,6 +16,7 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
 from sb3_maddpg.common.actions import check_action_space
+from sb3_maddpg.common.groups import check_groups
 
 
 def check_int(name: str, value: Any, minimum: int | None = None) -> int:
@@ -240,6 +241,9 @@ def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
     if isinstance(cvar_alpha, bool) or not isinstance(cvar_alpha, Real) or not 0.0 < cvar_alpha <= 1.0:
         raise ValueError(f"cvar_alpha must be a number in (0, 1] (1 = risk-neutral mean), got {cvar_alpha!r}")
     check_bool("share_actor", arguments["share_actor"])
+    check_groups(arguments["groups"])
+    if arguments["groups"] is not None and arguments["share_actor"]:
+        raise ValueError("share_actor=True shares one actor between all agents; give groups or share_actor, not both")
     policy_kwargs = arguments["policy_kwargs"]
     if isinstance(policy_kwargs, dict) and "share_actor" in policy_kwargs:
         raise ValueError(

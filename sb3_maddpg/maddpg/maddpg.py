@@ -16,6 +16,7 @@ from sb3_maddpg.common.actions import straight_through_gumbel_softmax
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.distributional import cvar, mean_anchored_quantile_loss, quantile_huber_loss
 from sb3_maddpg.common.graphed_update import GraphedUpdate, set_learning_rate
+from sb3_maddpg.common.groups import agent_groups
 from sb3_maddpg.common.noise import current_noise_std
 from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
 from sb3_maddpg.common.validation import check_maddpg_arguments
@@ -116,6 +117,11 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         CVaR_alpha < 1 reads the lower quantiles. False, the default, is QR-DQN's loss on plain quantile outputs; with
         one quantile the two are the same
     :param share_actor: one actor shared by all agents instead of one actor per agent
+    :param groups: parameter sharing inside groups of agents with the same spaces: ``"teams"`` (the agents of each
+        team by PettingZoo's naming, ``adversary_0``, ``adversary_1``, ... one group) or a list of groups of agent
+        names (agents not listed keep their own). The agents of a group share one actor MLP and one critic
+        network (each agent with a first-layer bias of its own, an agent-index input); their encoders stay their own.
+        None, the default: every agent its own actor and critic
     :param cuda_graph: capture each kind of gradient step (critics only; critics, actors and targets) as a CUDA
         graph on its first use and replay it afterwards: one launch per update instead of hundreds of kernel
         launches. Needs ``device="cuda"`` and a fixed batch size (another batch size is captured again); the
@@ -171,6 +177,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         gumbel_temperature: float = 1.0,
         mean_anchored_quantiles: bool = False,
         share_actor: bool = False,
+        groups: str | list[list[str]] | None = None,
         cuda_graph: bool = False,
         bf16_autocast: bool = False,
         n_agents: int | None = None,
@@ -196,6 +203,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
                 gumbel_temperature=gumbel_temperature,
                 mean_anchored_quantiles=mean_anchored_quantiles,
                 share_actor=share_actor,
+                groups=groups,
                 cuda_graph=cuda_graph,
                 bf16_autocast=bf16_autocast,
                 policy_kwargs=policy_kwargs,
@@ -234,6 +242,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         self.gumbel_temperature = float(gumbel_temperature)
         self.mean_anchored_quantiles = mean_anchored_quantiles
         self.share_actor = share_actor
+        self.groups = groups
         if cuda_graph and self.device.type != "cuda":
             raise ValueError(
                 f"cuda_graph=True records the update as a CUDA graph and needs device='cuda', got device={self.device!s}; "
@@ -246,7 +255,12 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             self._setup_model()
 
     def _policy_arguments(self) -> dict[str, Any]:
-        return dict(share_actor=self.share_actor, mean_anchored_quantiles=self.mean_anchored_quantiles)
+        assert self.agent_names is not None
+        return dict(
+            share_actor=self.share_actor,
+            mean_anchored_quantiles=self.mean_anchored_quantiles,
+            agent_groups=agent_groups(self.groups, self.agent_names, self.agent_spaces),
+        )
 
     def _setup_model(self) -> None:
         super()._setup_model()

@@ -44,6 +44,8 @@ class MultiAgentActor(nn.Module):
         observation entries (the others are padding, set to 0 before the encoders); None when nothing is padded
     :param action_mask: (N, action width) booleans marking each agent's own action entries (Box) or actions
         (Discrete); the actor outputs 0 in the others (Box) or never picks them (their logits are masked out)
+    :param agent_groups: the group of each agent: the agents of a group share one MLP (each with a first-layer bias
+        of its own, an agent-index input); None: every agent its own
     """
 
     def __init__(
@@ -60,6 +62,7 @@ class MultiAgentActor(nn.Module):
         critic_features: MultiAgentFeatures | None = None,
         observation_mask: th.Tensor | None = None,
         action_mask: th.Tensor | None = None,
+        agent_groups: tuple[int, ...] | None = None,
     ) -> None:
         super().__init__()
         self.n_agents = n_agents
@@ -86,6 +89,7 @@ class MultiAgentActor(nn.Module):
             action_width(action_space),
             net_arch,
             activation_fn,
+            shared_by=agent_groups,
         )
 
     def preactivations(self, observations: th.Tensor, critic_features: th.Tensor | None = None) -> th.Tensor:
@@ -181,6 +185,8 @@ class MultiAgentQuantileCritic(nn.Module):
         output row, and its quantiles are mu + d_j - mean(d): the mean is a value of its own, and the deviations (the
         distribution's shape) can be trained without moving the layers that the mean is computed from
         (``shape_gradient=False`` in ``all_quantiles_from_features``). MADDPG's ``mean_anchored_quantiles``
+    :param agent_groups: the group of each agent: the critics of a group's agents share their networks (network c
+        of each, with a first-layer bias of its own); None: every agent its own
     """
 
     def __init__(
@@ -198,6 +204,7 @@ class MultiAgentQuantileCritic(nn.Module):
         observation_mask: th.Tensor | None = None,
         action_mask: th.Tensor | None = None,
         mean_head: bool = False,
+        agent_groups: tuple[int, ...] | None = None,
     ) -> None:
         super().__init__()
         self.n_agents = n_agents
@@ -217,7 +224,14 @@ class MultiAgentQuantileCritic(nn.Module):
         self.action_dim = action_width(action_space)
         input_dim = n_agents * (self.features.features_dim + self.action_dim)
         n_outputs = n_quantiles + 1 if self.mean_head else n_quantiles
-        self.quantile_nets = BatchedMlp(n_critics * n_agents, input_dim, n_outputs, net_arch, activation_fn)
+        # With groups, network c of agent i uses the weights c * G + (group of i), G the number of groups
+        shared_by = None
+        if agent_groups is not None:
+            n_groups = max(agent_groups) + 1
+            shared_by = tuple(c * n_groups + group for c in range(n_critics) for group in agent_groups)
+        self.quantile_nets = BatchedMlp(
+            n_critics * n_agents, input_dim, n_outputs, net_arch, activation_fn, shared_by=shared_by
+        )
         # The first network of each agent: models 0 .. N-1
         self._first_critics = slice(0, n_agents)
 
@@ -368,6 +382,9 @@ class MADDPGPolicy(BasePolicy):
     :param normalize_images: divide image observations by 255
     :param optimizer_class: optimizer of actors and critics
     :param optimizer_kwargs: its keyword arguments, without the learning rate
+    :param agent_groups: the group of each agent (0, 1, ...): the actors of a group's agents share one MLP and their
+        critics share their networks, each agent with a first-layer bias of its own (an agent-index input); encoders
+        stay per agent. The algorithm's ``groups`` argument sets it. None: every agent its own networks
     :param mean_anchored_quantiles: critics with a mean head (``MultiAgentQuantileCritic``'s ``mean_head``); MADDPG's
         argument of the same name passes it
     :param agent_spaces: each agent's own spaces where they differ (``observation_space`` and ``action_space`` are
@@ -398,6 +415,7 @@ class MADDPGPolicy(BasePolicy):
         optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
         optimizer_kwargs: dict[str, Any] | None = None,
         mean_anchored_quantiles: bool = False,
+        agent_groups: tuple[int, ...] | None = None,
         agent_spaces: AgentSpaces | None = None,
     ) -> None:
         if not isinstance(observation_space, spaces.Box):
@@ -441,6 +459,7 @@ class MADDPGPolicy(BasePolicy):
         self.n_critics = n_critics
         self.agent_spaces = agent_spaces
         self.mean_anchored_quantiles = mean_anchored_quantiles
+        self.agent_groups = _check_agent_groups(agent_groups, n_agents, share_actor)
         observation_mask, action_mask = _padding_masks(agent_spaces, observation_space, action_space, n_agents)
         common = dict(
             observation_space=observation_space,
@@ -451,7 +470,7 @@ class MADDPGPolicy(BasePolicy):
             features_extractor_kwargs=self.features_extractor_kwargs,
             normalize_images=normalize_images,
         )
-        masks = dict(observation_mask=observation_mask, action_mask=action_mask)
+        masks = dict(observation_mask=observation_mask, action_mask=action_mask, agent_groups=self.agent_groups)
         self.actor_kwargs = dict(common, net_arch=actor_arch, shared=share_actor, **masks)
         self.critic_kwargs = dict(
             common,
@@ -519,6 +538,7 @@ class MADDPGPolicy(BasePolicy):
                 features_extractor_kwargs=self.features_extractor_kwargs,
                 agent_spaces=self.agent_spaces,
                 mean_anchored_quantiles=self.mean_anchored_quantiles,
+                agent_groups=self.agent_groups,
             )
         )
         return data
@@ -599,6 +619,7 @@ class CnnPolicy(MADDPGPolicy):
         optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
         optimizer_kwargs: dict[str, Any] | None = None,
         mean_anchored_quantiles: bool = False,
+        agent_groups: tuple[int, ...] | None = None,
         agent_spaces: AgentSpaces | None = None,
     ) -> None:
         super().__init__(
@@ -618,6 +639,7 @@ class CnnPolicy(MADDPGPolicy):
             optimizer_class=optimizer_class,
             optimizer_kwargs=optimizer_kwargs,
             mean_anchored_quantiles=mean_anchored_quantiles,
+            agent_groups=agent_groups,
             agent_spaces=agent_spaces,
         )
 
@@ -650,3 +672,15 @@ def _padding_masks(
     if action_mask.shape[1] != action_width(action_space):
         raise ValueError(f"the agents' widest action ({action_mask.shape[1]}) does not match the action space {action_space}")
     return th.as_tensor(observation_mask), th.as_tensor(action_mask)
+
+
+def _check_agent_groups(agent_groups: Any, n_agents: int, share_actor: bool) -> tuple[int, ...] | None:
+    """Agent groups as the policy takes them: one index per agent, numbered 0, 1, ... (the algorithm's ``groups``)."""
+    if agent_groups is None:
+        return None
+    groups = tuple(int(group) for group in agent_groups)
+    if len(groups) != n_agents or set(groups) != set(range(max(groups) + 1)):
+        raise ValueError(f"agent_groups must give each of the {n_agents} agents a group 0, 1, ..., got {agent_groups!r}")
+    if share_actor:
+        raise ValueError("share_actor=True already shares one actor between all agents; leave groups unset with it")
+    return groups

@@ -104,5 +104,5 @@ class DepartingAgentEnv(TargetReachEnv):
 def test_departing_agents_get_a_clear_error():
     venv = make_multiagent_vec_env(DepartingAgentEnv, seed=0)
     venv.reset()
-    with pytest.raises(ValueError, match="agents agent_1 have no observation in the middle of an episode: agents that leave"):
+    with pytest.raises(ValueError, match="agent_1 left before the episode's end: agents that are not in the episode"):
         venv.step(np.zeros((2, 2), np.float32))

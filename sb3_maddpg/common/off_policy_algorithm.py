@@ -227,6 +227,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         self.agent_names: list[str] | None = None
         # Each agent's own spaces where they differ (the VecEnv's are then padded); None when all agents share them
         self.agent_spaces: AgentSpaces | None = None
+        self.departures = False
         if self.env is not None:
             self._read_agents(self.env, n_agents)
             self._check_action_noise(action_noise, self.env.num_envs)
@@ -273,6 +274,8 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
                 f"but the VecEnv's agents have {env_agent_spaces or 'its spaces'}"
             )
         self.agent_spaces = env_agent_spaces
+        # Agents may leave before the episode ends (make_multiagent_vec_env's black_death): the losses read it
+        self.departures = bool(getattr(env, "departures", False))
         self.n_agents = int(n_agents)
         if names is not None and len(names) == self.n_agents:
             names = [str(name) for name in names]

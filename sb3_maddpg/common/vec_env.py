@@ -16,6 +16,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv,
 from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, VecEnvIndices, VecEnvStepReturn
 
 from sb3_maddpg.common.agent_spaces import AgentSpaces, read_agent_spaces
+from sb3_maddpg.common.departures import KeepDepartedAgents
 
 
 class AgentRows(np.ndarray):
@@ -146,23 +147,24 @@ class _SeparateResetInfos(BaseParallelWrapper):
         }
         observations, infos = self.env.reset(seed=seed, options=options)
         self.last_reset_infos = infos
-        self._check_whole_team(observations, "at reset")
+        self._check_whole_team(observations, "missing at reset")
         return observations, {agent: {} for agent in observations}
 
     def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
         observations, rewards, terminations, truncations, infos = self.env.step(actions)
         if self.env.agents:  # at an episode's end every agent may leave at once
-            self._check_whole_team(observations, "in the middle of an episode")
+            self._check_whole_team(observations, "left before the episode's end", self.env.agents)
         return observations, rewards, terminations, truncations, infos
 
-    def _check_whole_team(self, observations: dict, when: str) -> None:
-        """Agents that leave before the others (or join late) are not supported yet: say so where it happens."""
-        missing = [agent for agent in self.env.possible_agents if agent not in observations]
+    def _check_whole_team(self, observations: dict, when: str, agents: list[str] | None = None) -> None:
+        """Agents that leave before the others (or join late) need black_death=True: say so where it happens."""
+        staying = set(observations if agents is None else agents) & set(observations)
+        missing = [agent for agent in self.env.possible_agents if agent not in staying]
         if missing:
             raise ValueError(
-                f"agents {', '.join(map(str, missing))} have no observation {when}: agents that leave the episode before "
-                "the others are not supported yet (every agent of possible_agents must act at every step until the "
-                "joint episode ends)"
+                f"{', '.join(map(str, missing))} {when}: agents that are not in the episode while others are need "
+                "make_multiagent_vec_env(..., black_death=True) (their rows are kept, with zero observations, and left "
+                "out of the losses)"
             )
 
 
@@ -244,6 +246,8 @@ class MultiAgentVecEnv(_CopySeeds, VecEnvWrapper):
         self.possible_agents = list(possible_agents)
         self.n_agents = len(self.possible_agents)
         self.agent_spaces = agent_spaces
+        # Whether agents may leave before the episode ends (make_multiagent_vec_env's black_death)
+        self.departures = False
         if venv.num_envs % self.n_agents != 0:
             raise ValueError(f"the VecEnv has {venv.num_envs} rows, not a multiple of the {self.n_agents} agents")
         self.n_copies = venv.num_envs // self.n_agents
@@ -433,6 +437,7 @@ class SubprocMultiAgentVecEnv(_CopySeeds, VecEnv):
     :param env_kwargs: keyword arguments of ``env_fn``
     :param n_processes: worker processes (the copies are split as evenly as possible); at most ``n_envs``
     :param start_method: ``multiprocessing`` start method (default: ``forkserver`` where available, else ``spawn``)
+    :param black_death: agents may leave before the episode ends (see :func:`make_multiagent_vec_env`)
     """
 
     def __init__(
@@ -442,6 +447,7 @@ class SubprocMultiAgentVecEnv(_CopySeeds, VecEnv):
         env_kwargs: dict[str, Any] | None = None,
         n_processes: int = 2,
         start_method: str | None = None,
+        black_death: bool = False,
     ) -> None:
         n_processes = min(n_processes, n_envs)
         # Copies of worker p: first_copies[p] ... first_copies[p + 1] - 1
@@ -453,7 +459,7 @@ class SubprocMultiAgentVecEnv(_CopySeeds, VecEnv):
         for p in range(n_processes):
             copies = self.first_copies[p + 1] - self.first_copies[p]
             make_venv = CloudpickleWrapper(
-                lambda copies=copies: make_multiagent_vec_env(env_fn, copies, env_kwargs=env_kwargs)
+                lambda copies=copies: make_multiagent_vec_env(env_fn, copies, env_kwargs=env_kwargs, black_death=black_death)
             )
             remote, work_remote = context.Pipe()
             process = context.Process(target=_subproc_worker, args=(work_remote, remote, make_venv), daemon=True)
@@ -467,6 +473,7 @@ class SubprocMultiAgentVecEnv(_CopySeeds, VecEnv):
         self.n_agents = len(self.possible_agents)
         self.n_copies = n_envs
         self.agent_spaces: AgentSpaces | None = self._request(0, "attr", "agent_spaces")
+        self.departures: bool = self._request(0, "attr", "departures")
         observation_space, action_space = (self._request(0, "attr", name) for name in ("observation_space", "action_space"))
         super().__init__(n_envs * self.n_agents, observation_space, action_space)
         self._base_seed: int | None = None
@@ -615,6 +622,7 @@ def make_multiagent_vec_env(
     env_kwargs: dict[str, Any] | None = None,
     vec_env_cls: str | type[VecEnv] | None = None,
     n_processes: int | None = None,
+    black_death: bool = False,
 ) -> "MultiAgentVecEnv | SubprocMultiAgentVecEnv":
     """
     Build an SB3 VecEnv from a PettingZoo ParallelEnv with SuperSuit
@@ -636,6 +644,10 @@ def make_multiagent_vec_env(
         ``"subproc"`` (or ``SubprocVecEnv``) in worker processes (:class:`SubprocMultiAgentVecEnv`), with the same
         per-copy seeds
     :param n_processes: worker processes with ``"subproc"`` (default: one per CPU core, at most ``n_envs``)
+    :param black_death: agents may leave before the episode ends (:class:`~sb3_maddpg.common.departures.KeepDepartedAgents`,
+        as SuperSuit's ``black_death_v3``): their rows stay, with zero observations and rewards, each vector observation
+        gets a last entry that is 1 while its agent is in the episode and 0 after, the env gets no action for an agent
+        that has left, and the algorithm leaves its rows out of the losses. The VecEnv's ``departures`` is then True
     :return: the VecEnv
     """
     if not callable(env_fn) or isinstance(env_fn, ParallelEnv):
@@ -649,6 +661,8 @@ def make_multiagent_vec_env(
     if env_kwargs is not None and not isinstance(env_kwargs, dict):
         raise TypeError(f"env_kwargs must be a dict of keyword arguments of env_fn or None, got {env_kwargs!r}")
     subproc = _check_vec_env_cls(vec_env_cls, n_processes)
+    if not isinstance(black_death, bool):
+        raise TypeError(f"black_death must be True or False, got {black_death!r}")
     parallel_env = env_fn(**(env_kwargs or {}))
     if not isinstance(parallel_env, ParallelEnv):
         raise TypeError(
@@ -661,7 +675,9 @@ def make_multiagent_vec_env(
         # The env was built and checked here, where its errors are readable, before any worker process starts
         parallel_env.close()
         n_processes = n_processes if n_processes is not None else os.cpu_count() or 1
-        venv = SubprocMultiAgentVecEnv(env_fn, int(n_envs), env_kwargs=env_kwargs, n_processes=n_processes)
+        venv = SubprocMultiAgentVecEnv(
+            env_fn, int(n_envs), env_kwargs=env_kwargs, n_processes=n_processes, black_death=black_death
+        )
         if seed is not None:
             venv.seed(seed)
         return venv
@@ -670,9 +686,12 @@ def make_multiagent_vec_env(
         # One layout for all rows: SuperSuit pads observations with zeros and actions to the widest agent's, and
         # cuts each agent's action back to its own space before the env (the networks mask the padded entries)
         parallel_env = ss.pad_action_space_v0(ss.pad_observations_v0(parallel_env))
+    if black_death:
+        parallel_env = KeepDepartedAgents(parallel_env)
     markov_env = ss.pettingzoo_env_to_vec_env_v1(_SeparateResetInfos(parallel_env))
     sb3_env = ss.concat_vec_envs_v1(markov_env, int(n_envs), num_cpus=0, base_class="stable_baselines3")
     venv = MultiAgentVecEnv(sb3_env, possible_agents, None if agent_spaces.homogeneous else agent_spaces)
+    venv.departures = black_death
     if seed is not None:
         venv.seed(seed)
     return venv

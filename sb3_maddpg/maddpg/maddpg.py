@@ -47,6 +47,16 @@ class GradientStepStats(NamedTuple):
     actor_preactivation: th.Tensor | None = None  # the mean |pre-tanh output| (|logit| for Discrete actions)
 
 
+def batch_mean(values: th.Tensor, present: th.Tensor | None) -> th.Tensor:
+    """
+    Each agent's mean over the batch, (B, N) -> (N,); with ``present`` (B, N), over the rows where the agent is in the
+    episode only (an agent that has left has no loss there).
+    """
+    if present is None:
+        return values.mean(dim=0)
+    return (values * present).sum(dim=0) / present.sum(dim=0).clamp(min=1.0)
+
+
 class MADDPG(MultiAgentOffPolicyAlgorithm):
     """
     Multi-Agent DDPG with centralised quantile critics and a CVaR_alpha actor objective.
@@ -302,6 +312,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             first network on the batch's actions (B, N, n_quantiles), and the critic-side encodings of the
             observations (B, N, F), which the actor loss reuses
         """
+        present, next_present = self._presence(replay_data)
         with th.no_grad():
             # Target distribution (SPEC 2): r_i + gamma (1 - d) Z_i'(o', a'), a'_j = mu_j'(o'_j) from the target actors
             # (for Discrete actions the one-hot argmax). The target critics encode o' once; target actors that read
@@ -315,21 +326,28 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
                 noise = noise.clamp(-self.target_noise_clip, self.target_noise_clip)
                 next_actions = (next_actions + noise).clamp(-1.0, 1.0)
             # With several critic networks (MATD3's twins): the smaller value at each quantile level (clipped double Q)
+            if next_present is not None:
+                # An agent that has left acts no more: no action of its own reaches any critic
+                next_actions = next_actions * next_present.unsqueeze(-1)
             next_quantiles = self.critic_target.all_quantiles_from_features(next_features, next_actions).min(dim=0).values
             not_done = 1.0 - replay_data.dones.unsqueeze(-1)  # (B, 1, 1): terminations only, not truncations
+            if present is not None:
+                # An agent's return ends where it leaves the episode: (B, N, 1)
+                not_done = not_done * (1.0 - present * (1.0 - next_present)).unsqueeze(-1)
             target_quantiles = replay_data.rewards.unsqueeze(-1) + not_done * self.gamma * next_quantiles
 
         # Each agent's observation is encoded once; every critic reads all encodings
         features = self.critic.encode(replay_data.observations)  # (B, N, F)
+        actions = self._present_actions(replay_data.actions, present)
         # With mean-anchored quantiles, the deviations' loss trains only the output layer: the layers below and the
         # encoders learn from the mean's TD error alone, as a scalar critic's do
         all_quantiles = self.critic.all_quantiles_from_features(
-            features, replay_data.actions, shape_gradient=not self.mean_anchored_quantiles
+            features, actions, shape_gradient=not self.mean_anchored_quantiles
         )  # (n_critics, B, N, n_q)
         # Quantile regression (QR-DQN): quantile Huber loss, kappa = 1, at the midpoints (or its mean-anchored form);
         # mean over the batch (in float32 also under bf16 autocast); each critic network is fitted to the same target
         loss_fn = mean_anchored_quantile_loss if self.mean_anchored_quantiles else quantile_huber_loss
-        losses = [loss_fn(quantiles.float(), target_quantiles.float()).mean(dim=0) for quantiles in all_quantiles]
+        losses = [batch_mean(loss_fn(quantiles.float(), target_quantiles.float()), present) for quantiles in all_quantiles]
         return sum(losses[1:], losses[0]), all_quantiles[0], features  # (N,), (B, N, n_q), (B, N, F)
 
     def actor_loss(
@@ -355,9 +373,25 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         else:
             policy_actions = th.tanh(preactivations)
         # Critic i scores the batch's joint action with a_i = mu_i(o_i) in place of the batch's a_i
-        quantiles = self.critic.quantiles_with_own_actions(features, replay_data.actions, policy_actions)  # (B, N, n_q)
+        present, _ = self._presence(replay_data)
+        actions = self._present_actions(replay_data.actions, present)
+        quantiles = self.critic.quantiles_with_own_actions(features, actions, policy_actions)  # (B, N, n_q)
         regularisation = self.actor.agent_mean(preactivations.float().pow(2))  # (N,), over each agent's own entries
-        return -cvar(quantiles.float(), self.cvar_alpha).mean(dim=0) + self.actor_reg * regularisation
+        return -batch_mean(cvar(quantiles.float(), self.cvar_alpha), present) + self.actor_reg * regularisation
+
+    def _presence(self, replay_data: MultiAgentReplayBufferSamples) -> tuple[th.Tensor | None, th.Tensor | None]:
+        """
+        With agents that leave (``departures``): whether each agent is in the episode at o and at o', (B, N) each,
+        read from the last entry of its observations (``KeepDepartedAgents``); (None, None) otherwise.
+        """
+        if not self.departures:
+            return None, None
+        return replay_data.observations[..., -1].float(), replay_data.next_observations[..., -1].float()
+
+    @staticmethod
+    def _present_actions(actions: th.Tensor, present: th.Tensor | None) -> th.Tensor:
+        """The joint actions with those of agents that have left set to 0 (they act no more), (B, N, A)."""
+        return actions if present is None else actions * present.unsqueeze(-1)
 
     def _clip_gradients(self, module: th.nn.Module) -> None:
         if self.max_grad_norm is not None:

@@ -104,3 +104,15 @@ def test_black_death_needs_vector_observations():
         make_multiagent_vec_env(CountingImageEnv, black_death=True)
     with pytest.raises(TypeError, match="black_death must be True or False"):
         make_multiagent_vec_env(TargetReachEnv, black_death="yes")
+
+
+def test_a_model_trained_with_departures_acts_on_the_plain_env():
+    from sb3_maddpg.evaluation.baselines import ModelController
+    from sb3_maddpg.evaluation.evaluate import evaluate_controllers
+
+    venv = make_multiagent_vec_env(LeavingAgentEnv, seed=0, black_death=True)
+    model = MADDPG("MlpPolicy", venv, buffer_size=100, learning_starts=10, batch_size=8, seed=0,
+                   policy_kwargs=dict(n_quantiles=1))  # fmt: skip
+    model.learn(20)
+    results, _ = evaluate_controllers(LeavingAgentEnv, [ModelController(model)], n_episodes=2)
+    assert [episode["length"] for episode in results["maddpg"]] == [5.0, 5.0]

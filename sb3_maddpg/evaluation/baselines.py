@@ -374,6 +374,10 @@ class ModelController:
         if getattr(self.model, "agent_names", None) is not None:
             # A model of this library takes the observation dict itself: each agent's own shapes (agents with spaces
             # of their own), agents that have left the episode, and its team's order
+            if getattr(self.model, "departures", False):
+                # Trained with black_death=True: each observation ends with "in the episode" (an absent agent's row
+                # is zeros, as in training)
+                observations = {agent: np.append(obs, 1.0).astype(np.float32) for agent, obs in observations.items()}
             actions, _ = self.model.predict(dict(observations), deterministic=self.deterministic)
             return {agent: np.asarray(action, dtype=env.action_space(agent).dtype) for agent, action in actions.items()}
         # Row r of the batch goes to actor r mod N: stack in the fixed agent order, not in the dict's order.

@@ -103,7 +103,9 @@ def run_episode(
 
     keep(0)
     while env.agents:
-        actions = controller.act(observations, env)
+        # The agents still in the episode act (a step's dicts also hold those that left at that step)
+        live = {agent: observation for agent, observation in observations.items() if agent in env.agents}
+        actions = controller.act(live, env)
         observations, rewards, terminations, truncations, infos = env.step(actions)
         for agent, reward in rewards.items():
             agent_returns[agent] += float(reward)

@@ -113,6 +113,14 @@ for config in hz_a1 hz_a05 hz_a025 hz_a01; do POLICY[$config]="${POLICY[fast_b32
 # instead of -200): does the critic learn where hz_classic diverged?
 ENV[hz_classic_r01]=uav_coverage_hazard_cpu_v1; ENV_KWARGS[hz_classic_r01]="${ENV_KWARGS[fast_b32]}, \"reward_scale\": 0.1"
 ALGO[hz_classic_r01]="${ALGO[fast_b32]}"; POLICY[hz_classic_r01]="${POLICY[fast_b32]}"; STEPS[hz_classic_r01]=28000; EPISODES[hz_classic_r01]=100
+# Screens of the hazardous task's learning failure: gusts at a quarter of the steps instead of 3 in 4; crashes that
+# cost 50 energy instead of 200
+for config in hz_classic_g025 hz_classic_c50; do
+  ENV[$config]=uav_coverage_hazard_cpu_v1; ALGO[$config]="${ALGO[fast_b32]}"; POLICY[$config]="${POLICY[fast_b32]}"
+  STEPS[$config]=28000; EPISODES[$config]=100
+done
+ENV_KWARGS[hz_classic_g025]="${ENV_KWARGS[fast_b32]}, \"gust_prob\": 0.25"
+ENV_KWARGS[hz_classic_c50]="${ENV_KWARGS[fast_b32]}, \"crash_energy\": 50.0"
 ENV[fast_shared]=uav_coverage_cpu_v1; ALGO[fast_shared]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
 POLICY[fast_shared]="{\"n_quantiles\": 1, \"share_features_extractor\": true, $encoder}"; STEPS[fast_shared]=28000
 ENV[fast_shared_envs2]=uav_coverage_cpu_v1; ALGO[fast_shared_envs2]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[fast_shared_envs2]="${ENV_KWARGS[exact_tpn005_g09_mates]}"

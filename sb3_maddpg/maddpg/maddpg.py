@@ -325,10 +325,10 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
                 noise = next_actions.new_empty(next_actions.shape).normal_(0.0, self.target_policy_noise)
                 noise = noise.clamp(-self.target_noise_clip, self.target_noise_clip)
                 next_actions = (next_actions + noise).clamp(-1.0, 1.0)
-            # With several critic networks (MATD3's twins): the smaller value at each quantile level (clipped double Q)
             if next_present is not None:
                 # An agent that has left acts no more: no action of its own reaches any critic
                 next_actions = next_actions * next_present.unsqueeze(-1)
+            # With several critic networks (MATD3's twins): the smaller value at each quantile level (clipped double Q)
             next_quantiles = self.critic_target.all_quantiles_from_features(next_features, next_actions).min(dim=0).values
             not_done = 1.0 - replay_data.dones.unsqueeze(-1)  # (B, 1, 1): terminations only, not truncations
             if present is not None:

@@ -13,13 +13,12 @@ records what each agent really has, so that no network learns from a padded entr
 """
 
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 from gymnasium import spaces
 from pettingzoo.utils.env import ParallelEnv
 
-from sb3_maddpg.common.actions import check_action_space
+from sb3_maddpg.common.actions import action_width, check_action_space
 
 
 class AgentSpaces:
@@ -60,7 +59,7 @@ class AgentSpaces:
     @property
     def action_widths(self) -> np.ndarray:
         """Each agent's action width (N,): its Box's size, or its Discrete's n."""
-        return np.array([_action_width(space) for space in self.action_spaces], dtype=np.int64)
+        return np.array([action_width(space) for space in self.action_spaces], dtype=np.int64)
 
     def observation_mask(self) -> np.ndarray:
         """(N, *padded_observation_shape) booleans: True where agent i's padded observation holds its own entries."""
@@ -90,17 +89,6 @@ class AgentSpaces:
             f"{obs} / {action}" for obs, action in zip(self.observation_spaces, self.action_spaces, strict=True)
         )
         return f"AgentSpaces({agents})"
-
-    def __getstate__(self) -> dict[str, Any]:
-        return {"observation_spaces": self.observation_spaces, "action_spaces": self.action_spaces}
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.observation_spaces = tuple(state["observation_spaces"])
-        self.action_spaces = tuple(state["action_spaces"])
-
-
-def _action_width(space: spaces.Space) -> int:
-    return int(space.n) if isinstance(space, spaces.Discrete) else int(np.prod(space.shape))  # type: ignore[attr-defined]
 
 
 def read_agent_spaces(parallel_env: ParallelEnv, algorithm: str = "MADDPG") -> AgentSpaces:

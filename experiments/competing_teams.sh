@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Competing teams on one of MPE2's tasks (simple_tag, simple_adversary, simple_push): train three seeds through the
-# command line and the task's zoo_configs entry, then for each model, 20 episodes each (seeds 1000-1019):
+# command line and the task's zoo_configs entry, then for each model, EPISODES episodes each (default 100, reset seeds
+# from 1000):
 #   evaluate --team ADVERSARY --opponent random   the trained adversaries against random good agents, beside random
 #                                                 adversaries against the same random good agents;
 #   evaluate --team GOOD --opponent MODEL         the trained good agents against the trained adversaries, beside
@@ -15,6 +16,7 @@ PY=${PY:-.venv/bin/python}
 CORE=${CORE:-0}
 SEEDS=${SEEDS:-"0 1 2"}
 STEPS=${STEPS:-50000}
+EPISODES=${EPISODES:-100}
 ADVERSARY=${ADVERSARY:-adversary}
 GOOD=${GOOD:-agent}
 mkdir -p "$OUT"
@@ -26,9 +28,9 @@ for seed in $SEEDS; do
 done
 for model in "$OUT"/logs/maddpg/"$ENV_ID"_*/"$ENV_ID".zip; do
     run_name=$(basename "$(dirname "$model")")
-    run "$PY" -m sb3_maddpg evaluate --model "$model" --team "$ADVERSARY" --opponent random --episodes 20 --seed 1000 \
+    run "$PY" -m sb3_maddpg evaluate --model "$model" --team "$ADVERSARY" --opponent random --episodes "$EPISODES" --seed 1000 \
         --no-gif --out "$OUT/eval/${run_name}_${ADVERSARY}_vs_random" >"$OUT/eval_${run_name}_${ADVERSARY}.log" 2>&1
-    run "$PY" -m sb3_maddpg evaluate --model "$model" --team "$GOOD" --opponent "$model" --episodes 20 --seed 1000 \
+    run "$PY" -m sb3_maddpg evaluate --model "$model" --team "$GOOD" --opponent "$model" --episodes "$EPISODES" --seed 1000 \
         --no-gif --out "$OUT/eval/${run_name}_${GOOD}_vs_trained" >"$OUT/eval_${run_name}_${GOOD}.log" 2>&1
 done
 "$PY" - "$OUT" "$ADVERSARY" "$GOOD" <<'PY'

@@ -363,13 +363,14 @@ def run_evaluate(args: argparse.Namespace) -> None:
         if not os.path.isfile(args.opponent) or not zipfile.is_zipfile(args.opponent):
             raise UsageError(f"--opponent: {args.opponent} is neither 'random' nor a saved model (.zip)")
     if args.team is not None:
-        from sb3_maddpg.common.callbacks import agent_team
+        from sb3_maddpg.common.callbacks import check_team
 
         probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
-        teams = sorted({agent_team(str(agent)) for agent in probe.possible_agents})
         probe.close()
-        if args.team not in teams:
-            raise UsageError(f"--team: {env_id} has no team {args.team!r}; its teams: {', '.join(teams)}")
+        try:
+            check_team(args.team, probe.possible_agents)
+        except ValueError as error:
+            raise UsageError(f"--team: {error} ({env_id})") from error
     _check_writable(args.out, "--out")
     try:
         evaluate_and_report(

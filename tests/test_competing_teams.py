@@ -47,7 +47,7 @@ def test_team_against_random_and_against_a_model(adversary_run: Path, tmp_path: 
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["--team", "nobody"], "has no team 'nobody'; its teams: adversary, agent"),
+        (["--team", "nobody"], "no agent of the team 'nobody' in this env; its teams: adversary, agent"),
         (["--team", "agent", "--opponent", "missing.zip"], "neither 'random' nor a saved model"),
         (["--opponent", "missing.zip"], "give --team as well"),
     ],
@@ -62,3 +62,13 @@ def test_team_needs_a_model(tmp_path: Path, capsys) -> None:
     with pytest.raises(SystemExit) as exit_info:
         main(["evaluate", "--baselines-only", "--env", ENV, "--team", "agent", "--out", str(tmp_path / "e")])
     assert exit_info.value.code == 2 and "--team needs --model" in capsys.readouterr().err
+
+
+def test_team_controller_refuses_a_team_the_env_lacks() -> None:
+    from mpe2 import simple_adversary_v3
+
+    from sb3_maddpg.evaluation.baselines import RandomController, TeamController
+
+    controller = TeamController("nobody", RandomController(), RandomController())
+    with pytest.raises(ValueError, match="no agent of the team 'nobody' in this env; its teams: adversary, agent"):
+        controller.reset(simple_adversary_v3.parallel_env(), seed=0)

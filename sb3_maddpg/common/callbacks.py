@@ -1,6 +1,6 @@
 """Callbacks shared by the library and the command line."""
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
@@ -54,6 +54,17 @@ def agent_team(agent: str) -> str:
     """
     name, _, index = agent.rpartition("_")
     return name if name and index.isdigit() else agent
+
+
+def check_team(team: str, agents: Iterable[str]) -> None:
+    """
+    :param team: a team's name, as :func:`agent_team` makes it
+    :param agents: the env's agents (``possible_agents``)
+    :raises ValueError: no agent is of that team (the message lists the env's teams)
+    """
+    teams = sorted({agent_team(str(agent)) for agent in agents})
+    if team not in teams:
+        raise ValueError(f"no agent of the team {team!r} in this env; its teams: {', '.join(teams)}")
 
 
 def team_returns(agent_returns: dict[str, float]) -> dict[str, float]:

@@ -15,7 +15,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from sb3_maddpg.common.callbacks import agent_team
+from sb3_maddpg.common.callbacks import agent_team, check_team
 from sb3_maddpg.common.validation import check_int, check_number
 
 
@@ -410,9 +410,7 @@ class TeamController:
         self.name = name or f"{controller.name} ({team}) vs {opponent.name}"
 
     def reset(self, env: ParallelEnv, seed: int | None = None) -> None:
-        teams = {agent_team(str(agent)) for agent in env.possible_agents}
-        if self.team not in teams:
-            raise ValueError(f"no agent of the team {self.team!r} in this env; its teams: {', '.join(sorted(teams))}")
+        check_team(self.team, env.possible_agents)
         self.controller.reset(env, seed=seed)
         self.opponent.reset(env, seed=None if seed is None else seed + 1)
 

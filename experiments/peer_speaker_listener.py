@@ -9,7 +9,7 @@ Runs in a virtual environment of its own (AgileRL pins its own dependencies), e.
 
 AgileRL's own training loop (``train_multi_agent_off_policy``) with a population of one and neither mutation nor
 selection, so this is plain MADDPG; every hyperparameter is AgileRL's default (batch 64, actor and critic learning rates
-1e-3 and 1e-2, a learning step every 5 timesteps, γ 0.95, τ 0.01, Ornstein-Uhlenbeck noise 0.1, [64, 64] networks,
+1e-3 and 1e-2, an update every 5 timesteps (``--learn-step``), γ 0.95, τ 0.01, Ornstein-Uhlenbeck noise 0.1, [64, 64] networks,
 Gumbel-softmax actors for discrete actions), the replay buffer holds 100 000 transitions and learning starts after
 1 000 timesteps, as in this library's entry. One JSON line: the seed, the wall time and the measures of
 :func:`speaker_listener_episodes` for the trained agents acting deterministically.
@@ -32,6 +32,7 @@ def main() -> None:
     parser.add_argument("--continuous", action="store_true", help="Box actions (default: Discrete, MPE2's default)")
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--eval-seed", type=int, default=1000)
+    parser.add_argument("--learn-step", type=int, default=5, help="timesteps per update (AgileRL's default 5)")
     args = parser.parse_args()
 
     from agilerl.algorithms import MADDPG
@@ -52,6 +53,7 @@ def main() -> None:
         observation_spaces=[env.observation_space(name) for name in agents],
         action_spaces=[env.action_space(name) for name in agents],
         agent_ids=agents,
+        learn_step=args.learn_step,
     )
     start = time.time()
     trained, _ = train_multi_agent_off_policy(
@@ -68,7 +70,8 @@ def main() -> None:
 
     with torch.no_grad():
         result = speaker_listener_episodes(act, args.episodes, args.eval_seed, args.continuous)
-    print(json.dumps(dict(library="agilerl", seed=args.seed, timesteps=args.timesteps, seconds=round(seconds),
+    print(json.dumps(dict(library="agilerl", seed=args.seed, timesteps=args.timesteps, learn_step=args.learn_step,
+                          seconds=round(seconds),
                           continuous_actions=args.continuous, episodes=args.episodes, **result)))  # fmt: skip
 
 

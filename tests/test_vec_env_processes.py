@@ -161,3 +161,24 @@ def test_train_command_runs_copies_in_processes(tmp_path: Path, monkeypatch: pyt
     assert main(argv) == 0
     assert created and created[0] == 2
     assert (tmp_path / "logs" / "maddpg" / "uav_coverage_fast_v0_1" / "uav_coverage_fast_v0.zip").is_file()
+
+
+def test_agents_with_spaces_of_their_own_in_worker_processes() -> None:
+    """Padding and each agent's spaces survive the move into worker processes: the same steps and the same spaces."""
+    simple_speaker_listener_v4 = pytest.importorskip("mpe2.simple_speaker_listener_v4")
+    env_kwargs = dict(continuous_actions=False, max_cycles=5)
+    local = make_multiagent_vec_env(simple_speaker_listener_v4.parallel_env, n_envs=2, seed=3, env_kwargs=env_kwargs)
+    remote = make_multiagent_vec_env(
+        simple_speaker_listener_v4.parallel_env, n_envs=2, seed=3, env_kwargs=env_kwargs, vec_env_cls="subproc", n_processes=2
+    )
+    try:
+        assert remote.agent_spaces == local.agent_spaces and local.agent_spaces is not None
+        np.testing.assert_array_equal(local.reset(), remote.reset())
+        # rows: speaker (3 actions), listener (5 actions) of copy 0, then of copy 1
+        actions = np.array([2, 4, 0, 3])
+        for _ in range(6):  # past the end of the 5-step episodes
+            for a, b in zip(local.step(actions)[:3], remote.step(actions)[:3], strict=True):
+                np.testing.assert_array_equal(a, b)
+    finally:
+        local.close()
+        remote.close()

@@ -12,9 +12,7 @@ from sb3_maddpg.zoo.registry import MPE2_TASKS, make_multiagent_env
 
 pytest.importorskip("mpe2")
 ENV_IDS = [
-    env_id
-    for task in ("simple_spread_v3", *MPE2_TASKS)
-    for env_id in (task, "{}_discrete_{}".format(*task.rsplit("_", 1)))
+    env_id for task in ("simple_spread_v3", *MPE2_TASKS) for env_id in (task, "{}_discrete_{}".format(*task.rsplit("_", 1)))
 ]
 
 

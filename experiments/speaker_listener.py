@@ -42,11 +42,12 @@ def speaker_listener_episodes(act: Act, episodes: int, seed: int, continuous_act
         while env.agents:
             observations, rewards, _, _, _ = env.step(act(observations))
             total += float(sum(rewards.values()))
-        listener = env.unwrapped.world.agents[0]  # goal_a: the listener, goal_b: its landmark
-        distance = float(np.linalg.norm(listener.goal_a.state.p_pos - listener.goal_b.state.p_pos))
+        speaker = env.unwrapped.world.agents[0]  # MPE2 keeps the goal on the speaker: goal_a the listener, goal_b its landmark
+        listener, landmark = speaker.goal_a, speaker.goal_b
+        distance = float(np.linalg.norm(listener.state.p_pos - landmark.state.p_pos))
         returns.append(total)
         distances.append(distance)
-        touching.append(distance < listener.goal_a.size + listener.goal_b.size)
+        touching.append(distance < listener.size + landmark.size)
         env.close()
     return dict(mean=float(np.mean(returns)), std=float(np.std(returns)), final_distance=float(np.mean(distances)),
                 on_landmark=float(np.mean(touching)))  # fmt: skip

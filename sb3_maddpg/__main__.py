@@ -366,9 +366,10 @@ def run_evaluate(args: argparse.Namespace) -> None:
         from sb3_maddpg.common.callbacks import check_team
 
         probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
+        agents = list(probe.possible_agents)
         probe.close()
         try:
-            check_team(args.team, probe.possible_agents)
+            check_team(args.team, agents)
         except ValueError as error:
             raise UsageError(f"--team: {error} ({env_id})") from error
     _check_writable(args.out, "--out")

@@ -3,8 +3,9 @@
 # uav_coverage_hazard_cpu_v1 with one CVaR level, through the command line's -i (RL Zoo's --trained-agent: the
 # hazardous entry's hyperparameters, a fresh replay buffer, the saved noise schedule), then 20 evaluation episodes
 # (reset seeds 1000-1019) with the hazard counts (docs/results.md, "A quantile critic that learns as fast ...").
+# MEAN_LOSS=squared fits the critics' mean with the squared TD error (MADDPG's mean_loss; default: the entry's, Huber).
 # Usage: MODEL=runs/q25head/fast_b32_q25_anchor_s0.zip ALPHA=0.5 SEED=0 CORE=1 STEPS=8000 OUT=runs/hzft \
-#        bash experiments/hazard_finetune.sh
+#        [MEAN_LOSS=squared] bash experiments/hazard_finetune.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MODEL=${MODEL:?a model trained on uav_coverage_cpu_v1 (.zip)}
@@ -16,11 +17,12 @@ EPISODES=${EPISODES:-20}
 OUT=${OUT:-runs/hzft}
 PY=${PY:-.venv/bin/python}
 ENV_ID=uav_coverage_hazard_cpu_v1
-TAG="a${ALPHA}_s${SEED}"
+MEAN_LOSS=${MEAN_LOSS:-}
+TAG="a${ALPHA}${MEAN_LOSS:+_$MEAN_LOSS}_s${SEED}"
 mkdir -p "$OUT"
 run() { echo "$(date -u +%H:%M:%S) $*" >&2; nice -n 10 taskset -c "$CORE" "$@"; }
 run "$PY" -m sb3_maddpg train --algo maddpg --env "$ENV_ID" -i "$MODEL" -n "$STEPS" --seed "$SEED" \
-    -params "cvar_alpha:$ALPHA" -f "$OUT/logs_$TAG" --eval-freq -1 >"$OUT/train_$TAG.log" 2>&1
+    -params "cvar_alpha:$ALPHA" ${MEAN_LOSS:+"mean_loss:'$MEAN_LOSS'"} -f "$OUT/logs_$TAG" --eval-freq -1 >"$OUT/train_$TAG.log" 2>&1
 run "$PY" -m sb3_maddpg evaluate --model "$OUT/logs_$TAG/maddpg/${ENV_ID}_1/$ENV_ID.zip" --episodes "$EPISODES" \
     --seed 1000 --baselines random --no-gif --out "$OUT/eval_$TAG" >"$OUT/eval_$TAG.log" 2>&1
 grep -A3 "^| method" "$OUT/eval_$TAG.log"

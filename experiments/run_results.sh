@@ -109,6 +109,12 @@ for alpha in 05 025 01; do  # hz_a05: cvar_alpha 0.5, ...
 done
 ALGO[hz_a1]="${ALGO[fast_b32_q25_anchor]}"
 for config in hz_a1 hz_a05 hz_a025 hz_a01; do POLICY[$config]="${POLICY[fast_b32_q25]}"; done
+# The same five with the critics' mean fitted by the squared TD error (mean_loss "squared"): a crash's reward of about
+# -100 counts in full, where the Huber loss (kappa 1) weighs it as about -1
+for config in hz_classic hz_a1 hz_a05 hz_a025 hz_a01; do
+  ENV[${config}_sq]=uav_coverage_hazard_cpu_v1; ENV_KWARGS[${config}_sq]="${ENV_KWARGS[$config]}"; STEPS[${config}_sq]=28000
+  EPISODES[${config}_sq]=100; POLICY[${config}_sq]="${POLICY[$config]}"; ALGO[${config}_sq]="${ALGO[$config]%\}}, \"mean_loss\": \"squared\"}"
+done
 # The classic critic on the hazardous task with rewards scaled by 0.1 (a crash's energy, 200, is a reward of -20
 # instead of -200): does the critic learn where hz_classic diverged?
 ENV[hz_classic_r01]=uav_coverage_hazard_cpu_v1; ENV_KWARGS[hz_classic_r01]="${ENV_KWARGS[fast_b32]}, \"reward_scale\": 0.1"

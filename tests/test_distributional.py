@@ -253,3 +253,36 @@ def test_mean_head_quantiles_and_where_the_shape_gradient_goes():
         trunk_sizes[shape_gradient] = max(layer.weight.grad.abs().max().item() for layer in layers[:-1])
     # without the shape's gradient the layers below the output get only rounding noise through the mean
     assert trunk_sizes[False] < 1e-6 * trunk_sizes[True]
+
+
+def test_mean_anchored_quantile_loss_with_a_squared_mean_hand_computed():
+    # z = (0, 0), t = 2: the quantile term as above, 1.5, gradient's mean-free part (0.25, -0.25); squared mean term
+    # n / 4 * (2 - 0)^2 = 2 with d/dz_i = -(t - z_mean) / 2 = -1: total 3.5, gradient (-0.75, -1.25)
+    z = th.tensor([[0.0, 0.0]], requires_grad=True)
+    loss = mean_anchored_quantile_loss(z, th.tensor([[2.0]]), squared_mean=True)
+    loss.sum().backward()
+    assert loss.item() == pytest.approx(3.5)
+    assert z.grad[0].tolist() == pytest.approx([-0.75, -1.25])
+    # Inside the Huber threshold both mean terms agree: z = (0, 1), t = 0.9 gives 0.1825 as with the Huber mean
+    z = th.tensor([[0.0, 1.0]])
+    assert mean_anchored_quantile_loss(z, th.tensor([[0.9]]), squared_mean=True).item() == pytest.approx(0.1825)
+    # One quantile: (t_mean - z)^2 / 4 over the target samples' mean: z = 1, t = (2, 4): (3 - 1)^2 / 4 = 1
+    assert mean_anchored_quantile_loss(th.tensor([[1.0]]), th.tensor([[2.0, 4.0]]), squared_mean=True).item() == 1.0
+
+
+def test_squared_mean_counts_a_rare_large_loss_that_the_huber_mean_does_not():
+    # A scalar critic fitted to targets 0.4 nine times in ten and -100 once in ten (a rare crash). The Huber fit
+    # (kappa 1) is where 0.9 * (0.4 - z) = 0.1 * 1: z = 0.4 - 1 / 9 = 0.2889; the mean is 0.36 - 10 = -9.64.
+    targets = th.tensor([[0.4]] * 90 + [[-100.0]] * 10)
+
+    def gradient_at(value: float, squared: bool) -> float:
+        z = th.full((100, 1), value, requires_grad=True)
+        mean_anchored_quantile_loss(z, targets, squared_mean=squared).mean().backward()
+        return float(z.grad.sum())
+
+    assert gradient_at(0.4 - 1 / 9, squared=False) == pytest.approx(0.0, abs=1e-6)
+    assert gradient_at(-9.64, squared=True) == pytest.approx(0.0, abs=1e-5)
+    # At the other's estimate each loss still pulls: the Huber fit up from the mean (90 rows at -0.5 / 100, 10 at
+    # +0.5 / 100), the squared fit down from 0.2889 (-0.5 * (-9.64 - 0.2889))
+    assert gradient_at(-9.64, squared=False) == pytest.approx(-0.4, abs=1e-6)
+    assert gradient_at(0.4 - 1 / 9, squared=True) == pytest.approx(0.5 * (9.64 + 0.4 - 1 / 9), abs=1e-5)

@@ -131,3 +131,11 @@ def test_mean_anchored_quantiles_is_an_algorithm_argument():
         MADDPG("MlpPolicy", make_multiagent_vec_env(TargetReachEnv), policy_kwargs=dict(mean_anchored_quantiles=True))
     with pytest.raises(TypeError, match="mean_anchored_quantiles"):
         MADDPG("MlpPolicy", make_multiagent_vec_env(TargetReachEnv), mean_anchored_quantiles="yes")
+
+
+def test_mean_loss_must_be_huber_or_squared():
+    with pytest.raises(ValueError, match="mean_loss must be 'huber'"):
+        MADDPG("MlpPolicy", make_multiagent_vec_env(TargetReachEnv), mean_loss="mse")
+    # plain quantiles have no mean to fit
+    with pytest.raises(ValueError, match="n_quantiles=1 or with mean_anchored_quantiles=True"):
+        MADDPG("MlpPolicy", make_multiagent_vec_env(TargetReachEnv), mean_loss="squared", policy_kwargs=dict(n_quantiles=5))

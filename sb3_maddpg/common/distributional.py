@@ -168,7 +168,9 @@ def quantile_huber_loss(
     return _FusedQuantileHuberLoss.apply(current_quantiles, target_quantiles.detach(), taus.detach(), float(kappa))
 
 
-def mean_anchored_quantile_loss(current_quantiles: th.Tensor, target_quantiles: th.Tensor, kappa: float = 1.0) -> th.Tensor:
+def mean_anchored_quantile_loss(
+    current_quantiles: th.Tensor, target_quantiles: th.Tensor, kappa: float = 1.0, squared_mean: bool = False
+) -> th.Tensor:
     """
     The quantile Huber loss on the quantiles' deviations from their mean, plus the scalar critic's TD loss on the mean.
 
@@ -185,18 +187,33 @@ def mean_anchored_quantile_loss(current_quantiles: th.Tensor, target_quantiles: 
 
     :param current_quantiles: the critic's quantiles, shape (..., n)
     :param target_quantiles: samples of the target distribution (treated as constants), shape (..., m)
+    With ``squared_mean=True`` the mean's loss is the squared error ``n * (t̄ - z̄)^2 / 4`` (the same as the Huber term
+    while ``|t̄ - z̄| <= kappa``), TD3's and the MADDPG paper's critic loss: the mean is then the mean of the targets,
+    rare large outcomes counted in full. The Huber term is an M-estimator between the median and the mean: for targets
+    0.4 nine times in ten and -100 once in ten it settles at 0.289 instead of the mean -9.64, so a critic fitted with
+    it hardly sees a rare crash. With one quantile (the scalar critic) the shape term vanishes and only the mean's
+    loss remains.
+
+    :param current_quantiles: the critic's quantiles, shape (..., n)
+    :param target_quantiles: samples of the target distribution (treated as constants), shape (..., m)
     :param kappa: Huber threshold (> 0)
+    :param squared_mean: fit the mean with the squared error instead of the Huber loss
     :return: loss per leading index, shape (...)
     """
     n_quantiles = current_quantiles.shape[-1]
-    if n_quantiles == 1:
+    if n_quantiles == 1 and not squared_mean:
         return quantile_huber_loss(current_quantiles, target_quantiles, kappa=kappa)
     means = current_quantiles.mean(dim=-1, keepdim=True)
+    mean_error = target_quantiles.detach().mean(dim=-1) - means.squeeze(-1)
+    if squared_mean:
+        mean_loss = 0.5 * mean_error.square()
+    else:
+        mean_loss = th.nn.functional.huber_loss(mean_error, th.zeros_like(mean_error), reduction="none", delta=kappa) / kappa
+    if n_quantiles == 1:
+        return 0.5 * mean_loss
     # the same values; the gradient without its component along the mean
     deviations_only = current_quantiles - means + means.detach()
     shape_loss = quantile_huber_loss(deviations_only, target_quantiles, kappa=kappa)
-    mean_error = target_quantiles.detach().mean(dim=-1) - means.squeeze(-1)
-    mean_loss = th.nn.functional.huber_loss(mean_error, th.zeros_like(mean_error), reduction="none", delta=kappa) / kappa
     return shape_loss + 0.5 * n_quantiles * mean_loss
 
 

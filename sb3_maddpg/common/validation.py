@@ -261,6 +261,10 @@ def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
         "gumbel_temperature (the Gumbel-softmax temperature, default 1.0)", arguments["gumbel_temperature"], 0.0, low_open=True
     )
     check_bool("mean_anchored_quantiles", arguments["mean_anchored_quantiles"])
+    if arguments["mean_loss"] not in ("huber", "squared"):
+        raise ValueError(
+            f"mean_loss must be 'huber' (the default) or 'squared' (the squared TD error), got {arguments['mean_loss']!r}"
+        )
     check_bool("cuda_graph", arguments["cuda_graph"])
     check_bool("bf16_autocast", arguments["bf16_autocast"])
     check_int("policy_delay", arguments["policy_delay"], 1)

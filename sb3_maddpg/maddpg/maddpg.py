@@ -1,6 +1,7 @@
 """MADDPG with centralised quantile critics and a CVaR actor objective, on the multi-agent off-policy base."""
 
 import contextlib
+import functools
 import warnings
 from typing import Any, ClassVar, NamedTuple, TypeVar
 
@@ -126,6 +127,13 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         encoders then learn as a scalar critic's do, and a risk-neutral actor (``cvar_alpha=1``) follows the same value;
         CVaR_alpha < 1 reads the lower quantiles. False, the default, is QR-DQN's loss on plain quantile outputs; with
         one quantile the two are the same
+    :param mean_loss: the loss of the critics' mean (the scalar critic with ``n_quantiles=1``, or the mean of
+        ``mean_anchored_quantiles``): ``"huber"``, the default (kappa 1, as QR-DQN's quantiles), or ``"squared"``, TD3's
+        and the MADDPG paper's squared TD error. The Huber fit moves with the sign of errors beyond 1, not their size:
+        it settles between the median and the mean, and a rare large loss (a crash of -100 once in ten steps) weighs
+        as about -1. Take ``"squared"`` where rare large rewards must count in full (``mean_anchored_quantile_loss``).
+        Plain quantiles (``n_quantiles > 1`` without ``mean_anchored_quantiles``) have no mean to fit: ``"squared"``
+        is refused there
     :param share_actor: one actor shared by all agents instead of one actor per agent
     :param groups: parameter sharing inside groups of agents with the same spaces: ``"teams"`` (the agents of each
         team by PettingZoo's naming, ``adversary_0``, ``adversary_1``, ... one group) or a list of groups of agent
@@ -186,6 +194,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         target_noise_clip: float = 0.5,
         gumbel_temperature: float = 1.0,
         mean_anchored_quantiles: bool = False,
+        mean_loss: str = "huber",
         share_actor: bool = False,
         groups: str | list[list[str]] | None = None,
         cuda_graph: bool = False,
@@ -212,6 +221,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
                 target_noise_clip=target_noise_clip,
                 gumbel_temperature=gumbel_temperature,
                 mean_anchored_quantiles=mean_anchored_quantiles,
+                mean_loss=mean_loss,
                 share_actor=share_actor,
                 groups=groups,
                 cuda_graph=cuda_graph,
@@ -251,6 +261,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         self.target_noise_clip = float(target_noise_clip)
         self.gumbel_temperature = float(gumbel_temperature)
         self.mean_anchored_quantiles = mean_anchored_quantiles
+        self.mean_loss = mean_loss
         self.share_actor = share_actor
         self.groups = groups
         if cuda_graph and self.device.type != "cuda":
@@ -274,6 +285,11 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
 
     def _setup_model(self) -> None:
         super()._setup_model()
+        if self.mean_loss == "squared" and self.policy.n_quantiles > 1 and not self.mean_anchored_quantiles:
+            raise ValueError(
+                f"mean_loss='squared' fits a mean, and {self.policy.n_quantiles} plain quantiles have none: use it with "
+                "n_quantiles=1 or with mean_anchored_quantiles=True, or keep mean_loss='huber'"
+            )
         self.actor_lr_schedule = (
             self.lr_schedule if self.actor_learning_rate is None else FloatSchedule(self.actor_learning_rate)
         )
@@ -346,7 +362,10 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         )  # (n_critics, B, N, n_q)
         # Quantile regression (QR-DQN): quantile Huber loss, kappa = 1, at the midpoints (or its mean-anchored form);
         # mean over the batch (in float32 also under bf16 autocast); each critic network is fitted to the same target
-        loss_fn = mean_anchored_quantile_loss if self.mean_anchored_quantiles else quantile_huber_loss
+        if self.mean_loss == "squared":
+            loss_fn = functools.partial(mean_anchored_quantile_loss, squared_mean=True)
+        else:
+            loss_fn = mean_anchored_quantile_loss if self.mean_anchored_quantiles else quantile_huber_loss
         losses = [batch_mean(loss_fn(quantiles.float(), target_quantiles.float()), present) for quantiles in all_quantiles]
         return sum(losses[1:], losses[0]), all_quantiles[0], features  # (N,), (B, N, n_q), (B, N, F)
 

@@ -53,13 +53,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the first episode")
     parser.add_argument("--margin", type=float, default=MARGIN, help="the cautious policy's wall margin (cells)")
     parser.add_argument("--out", default=None, help="folder for the results files (none written without it)")
+    parser.add_argument(
+        "--crash-energy", type=float, default=None, help="E_c of a crash (default: the registered task's, 200)"
+    )
     args = parser.parse_args(argv)
-    report = compare(args.episodes, args.seed, args.margin)
+    env_kwargs = {} if args.crash_energy is None else {"crash_energy": args.crash_energy}
+    report = compare(args.episodes, args.seed, args.margin, **env_kwargs)
     summary = {row["method"]: row for row in report["summary"]}
-    print(f"{ENV_ID}, {args.episodes} episodes per policy, seeds {args.seed}..{args.seed + args.episodes - 1}")
+    print(f"{ENV_ID} {env_kwargs}, {args.episodes} episodes per policy, seeds {args.seed}..{args.seed + args.episodes - 1}")
     print(format_table(report["summary"]))
     if args.out:
-        metadata = {"env_id": ENV_ID, "n_episodes": args.episodes, "seed": args.seed, "margin": args.margin}
+        metadata = {"env_id": ENV_ID, "env_kwargs": env_kwargs, "n_episodes": args.episodes, "seed": args.seed}
+        metadata["margin"] = args.margin
         metadata["command"] = " ".join(["python", *sys.argv])
         write_results(args.out, report["results"], report["summary"], metadata)
         print(f"written to {args.out}")

@@ -183,12 +183,11 @@ def mean_anchored_quantile_loss(
     Why: the mean of quantile regression's midpoints is not the mean of the distribution, and it moves with the signs
     of the pairwise errors rather than their sizes (robust to rare large outcomes, which a risk-neutral actor must
     count). With this loss, an actor maximising the mean (CVaR at alpha 1) follows the same value as with a scalar
-    critic, while CVaR_alpha < 1 still reads the lower quantiles. With one quantile it is ``quantile_huber_loss``.
+    critic, while CVaR_alpha < 1 still reads the lower quantiles. With one quantile (and the Huber mean) it is
+    ``quantile_huber_loss``.
 
-    :param current_quantiles: the critic's quantiles, shape (..., n)
-    :param target_quantiles: samples of the target distribution (treated as constants), shape (..., m)
     With ``squared_mean=True`` the mean's loss is the squared error ``n * (t̄ - z̄)^2 / 4`` (the same as the Huber term
-    while ``|t̄ - z̄| <= kappa``), TD3's and the MADDPG paper's critic loss: the mean is then the mean of the targets,
+    with kappa 1 while ``|t̄ - z̄| <= 1``), TD3's and the MADDPG paper's critic loss: the mean is then the mean of the targets,
     rare large outcomes counted in full. The Huber term is an M-estimator between the median and the mean: for targets
     0.4 nine times in ten and -100 once in ten it settles at 0.289 instead of the mean -9.64, so a critic fitted with
     it hardly sees a rare crash. With one quantile (the scalar critic) the shape term vanishes and only the mean's

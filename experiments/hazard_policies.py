@@ -63,9 +63,14 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{ENV_ID} {env_kwargs}, {args.episodes} episodes per policy, seeds {args.seed}..{args.seed + args.episodes - 1}")
     print(format_table(report["summary"]))
     if args.out:
-        metadata = {"env_id": ENV_ID, "env_kwargs": env_kwargs, "n_episodes": args.episodes, "seed": args.seed}
-        metadata["margin"] = args.margin
-        metadata["command"] = " ".join(["python", *sys.argv])
+        metadata = {
+            "env_id": ENV_ID,
+            "env_kwargs": env_kwargs,
+            "n_episodes": args.episodes,
+            "seed": args.seed,
+            "margin": args.margin,
+            "command": " ".join(["python", *sys.argv]),
+        }
         write_results(args.out, report["results"], report["summary"], metadata)
         print(f"written to {args.out}")
     hug, margin = summary["hug_walls"], summary["keep_margin"]

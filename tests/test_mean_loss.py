@@ -9,7 +9,7 @@ from sb3_maddpg import MADDPG, make_multiagent_vec_env
 
 
 @pytest.mark.parametrize("kwargs", [dict(policy_kwargs=dict(n_quantiles=1)), dict(mean_anchored_quantiles=True)])
-def test_the_critic_loss_is_the_squared_error_of_the_mean(kwargs):
+def test_the_models_critic_loss_takes_the_squared_mean(kwargs):
     model = MADDPG(
         "MlpPolicy", make_multiagent_vec_env(TargetReachEnv), learning_starts=0, mean_loss="squared", seed=0, **kwargs
     )

@@ -360,12 +360,13 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         all_quantiles = self.critic.all_quantiles_from_features(
             features, actions, shape_gradient=not self.mean_anchored_quantiles
         )  # (n_critics, B, N, n_q)
-        # Quantile regression (QR-DQN): quantile Huber loss, kappa = 1, at the midpoints (or its mean-anchored form);
+        # Quantile regression (QR-DQN): quantile Huber loss, kappa = 1, at the midpoints, or its mean-anchored form,
+        # whose mean is fitted with the Huber or the squared TD error (mean_loss; with one quantile only that term);
         # mean over the batch (in float32 also under bf16 autocast); each critic network is fitted to the same target
-        if self.mean_loss == "squared":
-            loss_fn = functools.partial(mean_anchored_quantile_loss, squared_mean=True)
+        if self.mean_anchored_quantiles or self.mean_loss == "squared":
+            loss_fn = functools.partial(mean_anchored_quantile_loss, squared_mean=self.mean_loss == "squared")
         else:
-            loss_fn = mean_anchored_quantile_loss if self.mean_anchored_quantiles else quantile_huber_loss
+            loss_fn = quantile_huber_loss
         losses = [batch_mean(loss_fn(quantiles.float(), target_quantiles.float()), present) for quantiles in all_quantiles]
         return sum(losses[1:], losses[0]), all_quantiles[0], features  # (N,), (B, N, n_q), (B, N, F)
 

@@ -13,6 +13,7 @@ writes ``results.csv``, ``results.json``, ``episodes.csv`` and ``results.md`` in
 """
 
 import argparse
+import ast
 import sys
 from typing import Any
 
@@ -56,8 +57,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--crash-energy", type=float, default=None, help="E_c of a crash (default: the registered task's, 200)"
     )
+    parser.add_argument(
+        "--env-kwargs",
+        nargs="*",
+        default=[],
+        metavar="KEY:VALUE",
+        help="other env parameters over the registered task's, e.g. crash_ground_steps:30 grounded_penalty:0.5",
+    )
     args = parser.parse_args(argv)
     env_kwargs = {} if args.crash_energy is None else {"crash_energy": args.crash_energy}
+    for item in args.env_kwargs:
+        key, sep, value = item.partition(":")
+        if not sep or not key:
+            parser.error(f"--env-kwargs takes KEY:VALUE items, got {item!r}")
+        try:
+            env_kwargs[key] = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            parser.error(f"--env-kwargs {key}: {value!r} is not a Python literal (a number, a quoted string, ...)")
     report = compare(args.episodes, args.seed, args.margin, **env_kwargs)
     summary = {row["method"]: row for row in report["summary"]}
     print(f"{ENV_ID} {env_kwargs}, {args.episodes} episodes per policy, seeds {args.seed}..{args.seed + args.episodes - 1}")

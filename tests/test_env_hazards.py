@@ -144,7 +144,9 @@ def test_link_failure_step_disconnects_the_uav_with_one_neighbour():
 
 
 def test_hazards_off_draw_nothing_and_leave_the_infos_as_they_were():
-    core = UAVCoverageCore(**{**uav_coverage_v1.V1_DEFAULTS, "obs_size": 16, "crash_energy": 50.0})
+    core = UAVCoverageCore(
+        **uav_coverage_v1.V1_DEFAULTS, obs_size=16, crash_energy=50.0, crash_ground_steps=5, grounded_penalty=1.0
+    )
     core.reset(seed=0)
     core._rng = NoDraws()
     core.step(np.full((6, 2), 0.7))
@@ -169,11 +171,20 @@ def test_hazards_off_draw_nothing_and_leave_the_infos_as_they_were():
         ("link_failure_prob", 1.0),
         ("link_failure_prob", -0.01),
         ("link_failure_prob", None),
+        ("crash_ground_steps", -1),
+        ("crash_ground_steps", 2.5),
+        ("grounded_penalty", -0.1),
+        ("grounded_penalty", float("nan")),
     ],
 )
 def test_bad_hazard_values_are_refused_with_their_name(name, value):
     with pytest.raises(ValueError, match=f"{name} must"):
         UAVCoverageCore(obs_size=16, **{name: value})
+
+
+def test_grounded_penalty_needs_grounding():
+    with pytest.raises(ValueError, match="grounded_penalty=0.5 needs crash_ground_steps >= 1"):
+        UAVCoverageCore(obs_size=16, grounded_penalty=0.5)
 
 
 def test_wall_margin_checks():
@@ -199,12 +210,18 @@ def test_hazard_env_id_switches_the_hazards_on():
     assert env.observation_space("uav_0").shape == (4, 16, 16) and core.action_mode == "cartesian"
 
 
-def test_hazard_env_parallel_api():
-    parallel_api_test(make_multiagent_env("uav_coverage_hazard_cpu_v1", n_uavs=3, max_cycles=40), num_cycles=60)
+#: grounding after crashes, with gusts long enough to crash UAVs within a short test
+GROUNDING = {"crash_energy": 0.0, "gust_scale": 4.0, "crash_ground_steps": 5, "grounded_penalty": 0.5}
 
 
-def test_hazard_env_parallel_seed():
-    parallel_seed_test(lambda: make_multiagent_env("uav_coverage_hazard_cpu_v1", n_uavs=3, gust_prob=0.3), num_cycles=30)
+@pytest.mark.parametrize("kwargs", [{}, GROUNDING], ids=["registered", "grounding"])
+def test_hazard_env_parallel_api(kwargs):
+    parallel_api_test(make_multiagent_env("uav_coverage_hazard_cpu_v1", n_uavs=3, max_cycles=40, **kwargs), num_cycles=60)
+
+
+@pytest.mark.parametrize("kwargs", [{"gust_prob": 0.3}, GROUNDING], ids=["registered", "grounding"])
+def test_hazard_env_parallel_seed(kwargs):
+    parallel_seed_test(lambda: make_multiagent_env("uav_coverage_hazard_cpu_v1", n_uavs=3, **kwargs), num_cycles=30)
 
 
 def test_hazard_episodes_are_reproducible_from_the_seed():
@@ -220,3 +237,64 @@ def test_hazard_episodes_are_reproducible_from_the_seed():
 
     assert play(3) == play(3)
     assert play(3) != play(4)
+
+
+# --- grounding after a crash ----------------------------------------------------------------------------------------
+NO_GUSTS = [[0.9, 0.0, 0.0], [0.9, 0.0, 0.0]]  # both draws >= p_g = 0.5: nobody is hit
+
+
+def test_a_crash_grounds_the_uav_for_k_steps_then_it_flies_again():
+    # UAV 0 at (1, 8) is thrown 2 cells west against the wall (as above) at step 1; with k = 2 it sits out steps 2
+    # and 3 where it stopped, (0, 8), charged p = 0.3 a step, and flies again at step 4. UAV 1 is never hit.
+    core = core_with(
+        [[1.0, 8.0], [4.0, 8.0]],
+        [[[0.0, 0.875, 0.5], [0.9, 0.0, 0.0]], NO_GUSTS, NO_GUSTS, NO_GUSTS],
+        gust_prob=0.5,
+        gust_scale=2.0,
+        gust_tail=3.0,
+        crash_ground_steps=2,
+        grounded_penalty=0.3,
+    )
+    east = [1.0, 0.5]  # a full move east: dx = (2 * 1 - 1) l_max = 3
+    _, rewards, _, _ = core.step(np.array([HOVER, HOVER]))
+    assert core.last_crashed.tolist() == [True, False]
+    np.testing.assert_allclose(core.last_energy_spent, [0.5, 0.5])  # no crash_energy: the crash costs no energy
+    assert core.active.tolist() == [False, True] and core.grounded_steps_left.tolist() == [2, 0]
+    # From the next observation on the grounded UAV is absent: no own mark (channel 1), not in UAV 1's teammates
+    obs = core.observations()
+    assert obs[0, 1].max() == 0 and obs[1, 3].max() == 0
+    for _ in (2, 3):
+        visits_before = core.visits.copy()
+        _, rewards, terminated, _ = core.step(np.array([east, HOVER]))
+        np.testing.assert_allclose(core.positions[0], [0.0, 8.0])  # its action is ignored
+        np.testing.assert_allclose(core.last_energy_spent, [0.0, 0.5])
+        assert rewards[0] == pytest.approx(-0.3)
+        assert not terminated
+        # the PoIs covered are UAV 1's alone: the 29 lattice PoIs within R0 = 3 of (4, 8)
+        assert (core.visits - visits_before).sum() == 29
+    assert core.active.tolist() == [True, True] and core.grounded_steps_left.tolist() == [0, 0]
+    core.step(np.array([east, HOVER]))
+    np.testing.assert_allclose(core.positions[0], [3.0, 8.0])
+    assert core.last_energy_spent[0] > 0.5
+    info = core.infos()[0]
+    assert (info["crashes"], info["depletions"]) == (1, 0)
+
+
+def test_a_grounded_team_is_not_a_terminated_episode():
+    # A single UAV crashes and is grounded for 3 steps: the episode goes on (only depletion terminates it), its
+    # reward is -p each grounded step and it spends nothing.
+    core = core_with(
+        [[1.0, 8.0]],
+        [[[0.0, 0.875, 0.5]]] + [[[0.9, 0.0, 0.0]]] * 3,
+        gust_prob=0.5,
+        gust_scale=2.0,
+        gust_tail=3.0,
+        crash_ground_steps=3,
+        grounded_penalty=1.0,
+    )
+    core.step(np.array([HOVER]))
+    for _ in range(3):
+        _, rewards, terminated, truncated = core.step(np.array([HOVER]))
+        assert rewards.tolist() == [-1.0] and not terminated and not truncated
+        assert core.last_energy_spent.tolist() == [0.0]
+    assert core.active.tolist() == [True]

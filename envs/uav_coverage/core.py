@@ -106,6 +106,12 @@ class UAVCoverageCore:
         energy spent in the reward and in the energy metric
     :param link_failure_prob: p_f, hazard: the probability that a radio link in range fails at a step, each link on its
         own (0, the default, is no failures); a UAV whose links all fail is disconnected (charged ``comm_penalty``)
+    :param crash_ground_steps: k, hazard: a UAV that a gust crashes is grounded for the k steps after the crash
+        (0, the default, is never): it stays where it stopped and does not fly, cover, link or spend energy, its
+        observations and teammates' show it as absent, and then it takes off again from there. A crash's loss is
+        then spread over k steps of lost coverage instead of one step's energy (``crash_energy``)
+    :param grounded_penalty: p_g', charged to a grounded UAV at each of its grounded steps (its reward is then
+        -``reward_scale`` p_g' where a depleted UAV's is 0); needs ``crash_ground_steps`` > 0
     """
 
     def __init__(
@@ -142,6 +148,8 @@ class UAVCoverageCore:
         gust_tail: float = 2.0,
         crash_energy: float = 0.0,
         link_failure_prob: float = 0.0,
+        crash_ground_steps: int = 0,
+        grounded_penalty: float = 0.0,
     ) -> None:
         # --- configuration, validated where it enters -------------------------------------------------------------
         self.map_size = check_int("map_size", map_size, 1)
@@ -185,6 +193,13 @@ class UAVCoverageCore:
         self.crash_energy = check_real("crash_energy", crash_energy, low_inclusive=True)
         # p_f < 1: with certain failure there would be no links at all, a comm_range of 0 in disguise
         self.link_failure_prob = check_real("link_failure_prob", link_failure_prob, low_inclusive=True, high=1.0)
+        self.crash_ground_steps = check_int("crash_ground_steps", crash_ground_steps, 0)
+        self.grounded_penalty = check_real("grounded_penalty", grounded_penalty, low_inclusive=True)
+        if self.grounded_penalty > 0.0 and self.crash_ground_steps == 0:
+            raise ValueError(
+                f"grounded_penalty={grounded_penalty!r} needs crash_ground_steps >= 1 (without grounding no UAV is "
+                "ever grounded); set crash_ground_steps or leave grounded_penalty at 0"
+            )
         #: Whether a hazard is switched on (the infos then hold the hazard counters).
         self.hazards = self.gust_prob > 0.0 or self.link_failure_prob > 0.0
         #: Channels of an agent's observation: 3, or 4 with the teammate channel.
@@ -249,6 +264,8 @@ class UAVCoverageCore:
         self.positions = np.zeros((n, 2), dtype=np.float64)
         self.energy = np.full(n, self.max_energy, dtype=np.float64)
         self.active = np.ones(n, dtype=bool)
+        #: Steps each UAV stays grounded after a crash (0: flying; only with ``crash_ground_steps``)
+        self.grounded_steps_left = np.zeros(n, dtype=np.int64)
         self.t = 0
         self.total_energy_spent = 0.0
         self.wall_hits = np.zeros(n, dtype=np.int64)
@@ -343,6 +360,7 @@ class UAVCoverageCore:
         self.positions[...] = np.minimum(start, np.nextafter(float(size), 0.0))
         self.energy.fill(self.max_energy)
         self.active.fill(True)
+        self.grounded_steps_left.fill(0)
         self.t = 0
         self.total_energy_spent = 0.0
         self.wall_hits.fill(0)
@@ -383,9 +401,12 @@ class UAVCoverageCore:
         actions = np.clip(actions, 0.0, 1.0)
 
         # 2. Only UAVs that are active at the start of the step move, spend energy, cover, count for connectivity and
-        # are rewarded; a UAV that runs out during this step still does all of this once.
-        active = self.energy > self.depletion_level
+        # are rewarded; a UAV that runs out during this step still does all of this once. A grounded UAV (hazard)
+        # sits this step out and counts one of its grounded steps.
+        grounded = self.grounded_steps_left > 0
+        active = (self.energy > self.depletion_level) & ~grounded
         self.active[...] = active
+        self.grounded_steps_left[grounded] -= 1
 
         # 1. The commanded displacement: polar (the report's) or Cartesian.
         displacement, rho = commanded_move(actions, self.max_distance, self.action_mode)
@@ -418,6 +439,8 @@ class UAVCoverageCore:
             crashed = push_within_walls(self.positions, push, hit, self.map_size)
             self.last_gust[...] = push
             self.last_crashed[...] = crashed
+            # grounded from the next step on, for k steps
+            self.grounded_steps_left[crashed] = self.crash_ground_steps
 
         # 4. Energy, charged also for a refused move, never more than what is left; a crash costs E_c more.
         spent = step_energy(
@@ -494,6 +517,10 @@ class UAVCoverageCore:
         if self.reward_clip is not None:
             np.clip(rewards, -self.reward_clip, self.reward_clip, out=rewards)
         rewards[~active] = 0.0
+        if self.grounded_penalty > 0.0:
+            rewards[grounded] = -self.reward_scale * self.grounded_penalty
+            if self.reward_clip is not None:
+                np.clip(rewards, -self.reward_clip, self.reward_clip, out=rewards)
 
         self.wall_hits += wall_hit
         self.disconnections += disconnected
@@ -506,7 +533,9 @@ class UAVCoverageCore:
         self.last_rewards[...] = rewards
 
         # 9. Termination when every UAV is depleted; truncation at t = T (termination wins when both happen).
-        self.active[...] = self.energy > self.depletion_level
+        # A grounded UAV is not active until its grounded steps are over, but it is not depleted.
+        flying = self.energy > self.depletion_level
+        self.active[...] = flying & (self.grounded_steps_left == 0)
         if self.hazards:
             counts = self.hazard_counts
             if hit is not None:
@@ -514,8 +543,8 @@ class UAVCoverageCore:
                 counts["crashes"] += crashed
             if cut_off is not None:
                 counts["link_failures"] += cut_off
-            counts["depletions"] += active & ~self.active
-        terminated = not self.active.any()
+            counts["depletions"] += active & ~flying
+        terminated = not flying.any()
         truncated = (not terminated) and self.t >= self.max_cycles
         self._needs_reset = terminated or truncated
 

@@ -3,10 +3,11 @@ The table of ``experiments/tmc_sweep.sh``: for each N, the baselines measured he
 trained MADDPG runs (mean ± std over seeds of each seed's episode means, and the training minutes per seed) and the
 paper's eta_T at that N.
 
-    python experiments/tmc_table.py experiments/results/2026-12-04-tmc --figure docs/figures/tmc_eta_vs_n.png
+    python experiments/tmc_table.py experiments/results/2026-12-04-tmc experiments/results/2026-12-05-tmc \
+        experiments/results/2026-12-06-tmc/sweep --figure docs/figures/tmc_eta_vs_n.png
 
 Reads ``<out>/baselines/n<N>/results.csv``, ``<out>/eval/n<N>_s<seed>/results.csv`` (the ``evaluate`` command's) and
-``<out>/train_n<N>_s<seed>.seconds``.
+``<out>/train_n<N>_s<seed>.seconds`` of every folder given (the runs of one sweep may lie in several).
 """
 
 import argparse
@@ -33,13 +34,14 @@ def read_rows(path: Path) -> list[dict[str, str]]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
-    parser.add_argument("out", type=Path, help="the sweep's output folder (OUT of tmc_sweep.sh)")
+    parser.add_argument("out", type=Path, nargs="+", help="the sweep's output folders (OUT of tmc_sweep.sh)")
     parser.add_argument("--figure", type=Path, help="also draw eta_T against N (the paper's lines and ours) here")
     args = parser.parse_args()
     etas: dict[str, dict[int, tuple[float, float]]] = defaultdict(dict)  # method -> N -> (mean, std)
 
     lines = ["| N | method | episodes | c_T | f_T | ē_T | η_T | train min/seed |", "|---|---|---|---|---|---|---|---|"]
-    for folder in sorted((args.out / "baselines").glob("n*"), key=lambda p: int(p.name[1:])):
+    baselines = [folder for out in args.out for folder in (out / "baselines").glob("n*")]
+    for folder in sorted(baselines, key=lambda p: int(p.name[1:])):
         for row in read_rows(folder / "results.csv"):
             cells = [f"{float(row[f'{key}_mean']):.3f} ± {float(row[f'{key}_std']):.3f}" for key in METRICS]
             lines.append(f"| {folder.name[1:]} | {row['method']} | {row['episodes']} | " + " | ".join(cells) + " | |")
@@ -49,11 +51,11 @@ def main() -> None:
     # Trained runs: one seed's value is its mean over the episodes; the row is mean ± std over seeds.
     trained: dict[int, list[dict[str, str]]] = defaultdict(list)
     seconds: dict[int, list[float]] = defaultdict(list)
-    for folder in (args.out / "eval").glob("n*_s*"):
+    for folder in [folder for out in args.out for folder in (out / "eval").glob("n*_s*")]:
         match = re.fullmatch(r"n(\d+)_s(\d+)", folder.name)
         if match and (folder / "results.csv").is_file():
             trained[int(match.group(1))] += [r for r in read_rows(folder / "results.csv") if r["method"] != "random"]
-            timing = args.out / f"train_{folder.name}.seconds"
+            timing = folder.parent.parent / f"train_{folder.name}.seconds"
             if timing.is_file():
                 seconds[int(match.group(1))].append(float(timing.read_text()))
     for n in sorted(trained):
@@ -64,7 +66,8 @@ def main() -> None:
             cells.append(f"{values.mean():.3f} ± {values.std():.3f}")
         minutes = f"{np.mean(seconds[n]) / 60:.1f}" if seconds[n] else ""
         seed_etas = np.array([float(r["energy_efficiency_mean"]) for r in rows])
-        etas[f"{rows[0]['method']} (here, {len(rows)} seeds)"][n] = (float(seed_etas.mean()), float(seed_etas.std()))
+        # one line for the trained method whatever the seeds per N (the table gives them)
+        etas[f"{rows[0]['method']} (here, mean ± std over seeds)"][n] = (float(seed_etas.mean()), float(seed_etas.std()))
         label = f"| {n} | {rows[0]['method']} ({len(rows)} seeds) | {rows[0]['episodes']} each | "
         lines.append(label + " | ".join(cells) + f" | {minutes} |")
     print("\n".join(lines))

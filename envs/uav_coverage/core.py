@@ -110,8 +110,8 @@ class UAVCoverageCore:
         (0, the default, is never): it stays where it stopped and does not fly, cover, link or spend energy, its
         observations and teammates' show it as absent, and then it takes off again from there. A crash's loss is
         then spread over k steps of lost coverage instead of one step's energy (``crash_energy``)
-    :param grounded_penalty: p_g', charged to a grounded UAV at each of its grounded steps (its reward is then
-        -``reward_scale`` p_g' where a depleted UAV's is 0); needs ``crash_ground_steps`` > 0
+    :param grounded_penalty: p_d, charged to a grounded UAV at each of its grounded steps (its reward is then
+        -``reward_scale`` p_d where a depleted UAV's is 0); needs ``crash_ground_steps`` > 0
     """
 
     def __init__(

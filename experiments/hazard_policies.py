@@ -13,13 +13,13 @@ writes ``results.csv``, ``results.json``, ``episodes.csv`` and ``results.md`` in
 """
 
 import argparse
-import ast
 import sys
 from typing import Any
 
+from sb3_maddpg.__main__ import parse_key_values
 from sb3_maddpg.evaluation.baselines import GreedyStaticController
 from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
-from sb3_maddpg.zoo.registry import make_multiagent_env
+from sb3_maddpg.zoo.registry import UsageError, make_multiagent_env
 
 ENV_ID = "uav_coverage_hazard_cpu_v1"
 #: How far from every wall the cautious placement keeps its spots, in cells.
@@ -66,14 +66,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     env_kwargs = {} if args.crash_energy is None else {"crash_energy": args.crash_energy}
-    for item in args.env_kwargs:
-        key, sep, value = item.partition(":")
-        if not sep or not key:
-            parser.error(f"--env-kwargs takes KEY:VALUE items, got {item!r}")
-        try:
-            env_kwargs[key] = ast.literal_eval(value)
-        except (ValueError, SyntaxError):
-            parser.error(f"--env-kwargs {key}: {value!r} is not a Python literal (a number, a quoted string, ...)")
+    try:
+        env_kwargs.update(parse_key_values(args.env_kwargs, "--env-kwargs"))
+    except UsageError as error:
+        parser.error(str(error))
     report = compare(args.episodes, args.seed, args.margin, **env_kwargs)
     summary = {row["method"]: row for row in report["summary"]}
     print(f"{ENV_ID} {env_kwargs}, {args.episodes} episodes per policy, seeds {args.seed}..{args.seed + args.episodes - 1}")

@@ -514,13 +514,12 @@ class UAVCoverageCore:
             shared = float(credit.mean())
             own_energy = energy_cost(spent, self.energy_coef, self.move_energy, self.max_distance)
             rewards = self.reward_scale * (credit - own_energy - penalties)
-        if self.reward_clip is not None:
-            np.clip(rewards, -self.reward_clip, self.reward_clip, out=rewards)
         rewards[~active] = 0.0
         if self.grounded_penalty > 0.0:
             rewards[grounded] = -self.reward_scale * self.grounded_penalty
-            if self.reward_clip is not None:
-                np.clip(rewards, -self.reward_clip, self.reward_clip, out=rewards)
+        # after the inactive UAVs' zeros, which clipping leaves as they are
+        if self.reward_clip is not None:
+            np.clip(rewards, -self.reward_clip, self.reward_clip, out=rewards)
 
         self.wall_hits += wall_hit
         self.disconnections += disconnected

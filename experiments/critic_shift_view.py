@@ -1,0 +1,269 @@
+"""
+Whose is the cell that a trained UAV team's places are off by, the critics' or the actors'? For a saved MADDPG model
+on ``uav_coverage_v1`` (``obs_size=16``, 300-step episodes, random starts), the team flies its deterministic policy;
+at the chosen steps, for each UAV i, 25 candidate moves are scored: the actor's own move and the same move shifted by
+-1, -0.5, 0, 0.5 or 1 cell on each axis (shortened to l_max, kept inside the area), with the teammates' moves the
+actors'. Each candidate gets
+
+- the critic's score: the mean of critic i's quantiles (its first network) on the joint observation with UAV i's
+  action replaced by the candidate (``quantiles_with_own_actions``, as the actor update scores it);
+- the truth that matters for the layout: the number of PoIs that the team covers after the step (static coverage of
+  the next positions), with UAV i at the candidate's end point.
+
+With ``--rollout H`` each candidate also gets UAV i's own discounted return over the next H steps when it makes
+that move and the team then flies its policy (the episode replayed from its seed and recorded actions: the env has no
+randomness after the reset without hazards), the quantity critic i estimates, truncated at H (γ^H of the tail left
+out), and the best-coverage spot once more held: UAV i hovers there after the move while its teammates fly on (a
+policy that keeps the better spot rather than a one-step deviation from the learned one).
+
+Per UAV and step it prints the gain in covered PoIs that the best candidate offers over the actor's move, whether the
+critic ranks that candidate above the actor's move, and Spearman's rank correlation of the critic's scores with the
+covered PoIs. A critic that ranks the better spot higher while the actor does not go there points at the actor
+(its gradient ascent on the critic); a critic that prefers the actor's move points at the critic (it cannot see
+the better spot). Energy is left out of the truth: a shift of a cell costs one step's extra flight, the PoIs it
+gains count at every later step.
+
+    python experiments/critic_shift_view.py runs/p3/exact_tpn005_g09_mates_s0.zip --episodes 3 --steps 150 299
+    python experiments/critic_shift_view.py MODEL --episodes 2 --steps 150 --rollout 30
+"""
+
+import argparse
+import json
+
+import numpy as np
+import torch as th
+from uav_learning import reject_removed_variants  # the sibling file, not a package
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg_envs import uav_coverage_v1
+
+EVAL_SEED = 10_000  # the first evaluation episode of experiments/uav_learning.py and docs/results.md
+SHIFTS = np.array([(dx, dy) for dx in (-1.0, -0.5, 0.0, 0.5, 1.0) for dy in (-1.0, -0.5, 0.0, 0.5, 1.0)])
+
+
+def covered_pois(positions: np.ndarray, pois: np.ndarray, coverage_range: float) -> int:
+    """How many PoIs lie within ``coverage_range`` of some position."""
+    inside = ((pois[None, :, :] - positions[:, None, :]) ** 2).sum(axis=-1) <= coverage_range**2
+    return int(inside.any(axis=0).sum())
+
+
+def spearman(x: np.ndarray, y: np.ndarray) -> float:
+    """Spearman's rank correlation (average ranks for ties); NaN when either side is constant."""
+
+    def ranks(v: np.ndarray) -> np.ndarray:
+        order = np.argsort(v, kind="stable")
+        r = np.empty(len(v))
+        r[order] = np.arange(len(v), dtype=float)
+        for value in np.unique(v):  # ties share their mean rank
+            r[v == value] = r[v == value].mean()
+        return r
+
+    rx, ry = ranks(x), ranks(y)
+    if rx.std() == 0 or ry.std() == 0:
+        return float("nan")
+    return float(np.corrcoef(rx, ry)[0, 1])
+
+
+def candidate_moves(position: np.ndarray, own_move: np.ndarray, max_distance: float, map_size: float) -> np.ndarray:
+    """(25, 2) displacements: ``own_move`` shifted by SHIFTS, kept inside the area and shortened to l_max."""
+    ends = np.clip(position + own_move + SHIFTS, 0.0, np.nextafter(map_size, 0.0))
+    moves = ends - position
+    norms = np.linalg.norm(moves, axis=1, keepdims=True)
+    return moves * np.minimum(1.0, max_distance / np.maximum(norms, 1e-12))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    parser.add_argument("model", help="a saved MADDPG model (.zip) trained on uav_coverage_cpu_v1")
+    parser.add_argument("--env-kwargs", type=json.loads, default={}, help="JSON dict of extra env parameters")
+    parser.add_argument("--episodes", type=int, default=3)
+    parser.add_argument("--seed", type=int, default=EVAL_SEED, help="seed of the first episode")
+    parser.add_argument("--steps", type=int, nargs="+", default=[150, 299], help="steps at which moves are scored")
+    parser.add_argument("--rollout", type=int, default=0, help="H > 0: each candidate's H-step return (slow)")
+    args = parser.parse_args()
+    reject_removed_variants(args.env_kwargs)
+    th.set_num_threads(1)
+    model = MADDPG.load(args.model, device="cpu")
+    policy = model.policy
+    policy.set_training_mode(False)
+    rows = []
+    for episode in range(args.episodes):
+        env = uav_coverage_v1.parallel_env(obs_size=16, max_cycles=300, **args.env_kwargs)
+        observations, _ = env.reset(seed=args.seed + episode)
+        core = env.core
+        if core.action_mode != "cartesian":
+            raise ValueError("the candidates are Cartesian moves: use v1's action_mode='cartesian'")
+        step, history = 0, []
+        while env.agents:
+            stacked = np.stack([observations[agent] for agent in env.possible_agents])
+            actions, _ = model.predict(stacked, deterministic=True)  # env actions in [0, 1]
+            if step in args.steps:
+                scored = score_moves(model, core, stacked, actions, episode, step)
+                if args.rollout > 0:
+                    replay = (args.env_kwargs, args.seed + episode, history)
+                    for row in scored:
+                        row.update(rollout_truth(model, replay, actions, row, args.rollout))
+                rows.extend(scored)
+            history.append(actions)
+            observations, *_ = env.step({agent: actions[i] for i, agent in enumerate(env.possible_agents)})
+            step += 1
+    summarise(rows, args.rollout)
+
+
+def share(rows: list[dict], key: str) -> float:
+    """The fraction of ``rows`` whose ``key`` is true (NaN for none)."""
+    return float(np.mean([r[key] for r in rows])) if rows else float("nan")
+
+
+def spread(values: list[float]) -> str:
+    """Median and quartiles, finite values only."""
+    v = np.array([x for x in values if np.isfinite(x)])
+    return f"median {np.median(v):+.3f} (quartiles {np.quantile(v, 0.25):+.3f}, {np.quantile(v, 0.75):+.3f})"
+
+
+def summarise(rows: list[dict], rollout: int) -> None:
+    """Print what the module's docstring lists."""
+    better = [r for r in rows if r["gain"] > 0]
+    clear = [r for r in rows if r["gain"] >= 2]
+    print(
+        f"{len(rows)} UAV-steps: a spot within a cell covers more PoIs in {len(better)} (mean gain "
+        f"{np.mean([r['gain'] for r in rows]):.2f} PoIs, largest {int(max(r['gain'] for r in rows))}); where there "
+        f"is one, the critic scores it above the actor's move in {share(better, 'critic_prefers_best'):.2f}; the "
+        f"actor's move is the critic's best of the 25 in {share(rows, 'own_is_critic_argmax'):.2f}; Spearman's rho "
+        f"of the critic's scores with the covered PoIs: {spread([r['rho'] for r in rows])}; the critic's score range "
+        f"over the 25 moves: {spread([r['q_range'] for r in rows])}"
+    )
+    if clear:
+        print(
+            f"{len(clear)} UAV-steps with a spot 2 or more PoIs better: the critic scores it above the actor's move in "
+            f"{share(clear, 'critic_prefers_best'):.2f}; critic's score, that spot minus the actor's move: "
+            f"{spread([r['q_gap'] for r in clear])}; the gain held for 1 / (1 - gamma) steps at the mean PoI worth: "
+            f"{spread([r['value_of_gain'] for r in clear])}; the spot's extra energy this step: "
+            f"{spread([r['extra_energy'] for r in clear])}"
+        )
+    if rollout > 0:
+        improvable = [r for r in rows if r["return_gain"] > 0]
+        print(
+            f"against UAV i's {rollout}-step return after each move (the team on its policy after it): Spearman's "
+            f"rho of the critic's scores {spread([r['rho_return'] for r in rows])}; the best move's return minus "
+            f"the actor's: {spread([r['return_gain'] for r in rows])}; the critic scores that move above the actor's "
+            f"in {share(improvable, 'critic_prefers_best_return'):.2f} of the {len(improvable)} UAV-steps where it "
+            f"is better; the best-coverage move's return minus the actor's: "
+            f"{spread([r['return_of_best_coverage'] for r in rows])}; the best-coverage spot held (UAV i hovers "
+            f"there after the move) minus the actor's move and policy: "
+            f"{spread([r['return_of_best_coverage_held'] for r in rows])}"
+        )
+
+
+def rollout_truth(model: MADDPG, replay: tuple, actions: np.ndarray, row: dict, horizon: int) -> dict:
+    """UAV ``row["uav"]``'s discounted return over ``horizon`` steps for each of its candidate moves (docstring)."""
+    i, returns = row["uav"], []
+    for move in row["moves"]:
+        returns.append(candidate_return(model, replay, actions, i, move, horizon, hold=False))
+    returns = np.array(returns)
+    actor, best = row["actor_index"], int(np.argmax(returns))
+    # The best-coverage spot held: UAV i hovers there for the rest of the horizon, its teammates on their policy
+    held = candidate_return(model, replay, actions, i, row["moves"][row["best_index"]], horizon, hold=True)
+    return dict(
+        rho_return=spearman(row["scores"], returns),
+        return_gain=float(returns[best] - returns[actor]),
+        critic_prefers_best_return=bool(row["scores"][best] > row["scores"][actor]),
+        return_of_best_coverage=float(returns[row["best_index"]] - returns[actor]),
+        return_of_best_coverage_held=float(held - returns[actor]),
+    )
+
+
+def candidate_return(
+    model: MADDPG, replay: tuple, actions: np.ndarray, i: int, move: np.ndarray, horizon: int, hold: bool
+) -> float:
+    """
+    UAV i's discounted return over ``horizon`` steps when it makes ``move`` now and then follows its policy, or
+    hovers with ``hold``; its teammates follow their policy.
+    """
+    env_kwargs, seed, history = replay
+    env = uav_coverage_v1.parallel_env(obs_size=16, max_cycles=300, **env_kwargs)
+    observations, _ = env.reset(seed=seed)
+    for past in history:
+        observations, *_ = env.step({agent: past[j] for j, agent in enumerate(env.possible_agents)})
+    joint = actions.copy()
+    joint[i] = np.clip((move / env.core.max_distance + 1.0) / 2.0, 0.0, 1.0)
+    total, discount = 0.0, 1.0
+    for _ in range(horizon):
+        if not env.agents:
+            break
+        observations, rewards, *_ = env.step({agent: joint[j] for j, agent in enumerate(env.possible_agents)})
+        total += discount * rewards[env.possible_agents[i]]
+        discount *= model.gamma
+        if env.agents:
+            stacked = np.stack([observations[agent] for agent in env.possible_agents])
+            joint, _ = model.predict(stacked, deterministic=True)
+            if hold:
+                joint[i] = 0.5  # v1's Cartesian action for no move
+    return total
+
+
+def score_moves(model: MADDPG, core, stacked: np.ndarray, actions: np.ndarray, episode: int, step: int) -> list[dict]:
+    """The candidates of every active UAV at this step (see the module's docstring)."""
+    policy = model.policy
+    max_distance, n_agents = core.max_distance, len(actions)
+    # A PoI that UAV i alone covers is worth (N / K) (1 - phi c(k)) a step in its reward (v1's coverage reward)
+    poi_worth = n_agents / len(core.pois) * (1.0 - core.fairness_coef * float(core.coverage_scores.mean()))
+    energy_scale = core.energy_coef / (core.move_energy * max_distance)
+    own_moves = (2.0 * actions - 1.0) * max_distance
+    norms = np.linalg.norm(own_moves, axis=1, keepdims=True)
+    own_moves = own_moves * np.minimum(1.0, max_distance / np.maximum(norms, 1e-12))
+    positions = core.positions.copy()
+    next_positions = np.clip(positions + own_moves, 0.0, np.nextafter(core.map_size, 0.0))
+    with th.no_grad():
+        obs = policy.obs_to_tensor(stacked)[0].view(1, n_agents, *stacked.shape[1:])
+        features = policy.critic.encode(obs)
+        joint = th.as_tensor(policy.scale_action(actions), dtype=th.float32).view(1, n_agents, -1)
+    rows = []
+    for i in range(n_agents):
+        if not core.active[i]:
+            continue
+        moves = candidate_moves(positions[i], own_moves[i], max_distance, core.map_size)
+        candidate_actions = policy.scale_action(np.clip((moves / max_distance + 1.0) / 2.0, 0.0, 1.0))
+        with th.no_grad():
+            own = joint.repeat(len(moves), 1, 1)
+            own[:, i] = th.as_tensor(candidate_actions, dtype=th.float32)
+            scores = (
+                policy.critic.quantiles_with_own_actions(
+                    features.expand(len(moves), -1, -1), joint.expand(len(moves), -1, -1), own
+                )[:, i]
+                .mean(dim=-1)
+                .numpy()
+            )
+        covered = np.empty(len(moves))
+        for c, move in enumerate(moves):
+            layout = next_positions.copy()
+            layout[i] = positions[i] + move
+            covered[c] = covered_pois(layout, core.pois, core.coverage_range)
+        actor = int(np.argmin(np.abs(SHIFTS).sum(axis=1)))  # the unshifted candidate: the actor's own move
+        best = int(np.argmax(covered))
+        rho = np.linalg.norm(moves, axis=1) / max_distance  # the step's energy: eta l + E_h (1 - rho), l = rho l_max
+        energy = core.move_energy * rho * max_distance + core.hover_energy * (1.0 - rho)
+        rows.append(
+            dict(
+                episode=episode,
+                step=step,
+                uav=i,
+                gain=covered[best] - covered[actor],
+                critic_prefers_best=bool(scores[best] > scores[actor]),
+                own_is_critic_argmax=bool(np.argmax(scores) == actor),
+                rho=spearman(scores, covered),
+                q_range=float(scores.max() - scores.min()),
+                q_gap=float(scores[best] - scores[actor]),
+                value_of_gain=float((covered[best] - covered[actor]) * poi_worth / (1.0 - model.gamma)),
+                extra_energy=float((energy[best] - energy[actor]) * energy_scale),
+                moves=moves,
+                scores=scores,
+                actor_index=actor,
+                best_index=best,
+            )
+        )
+    return rows
+
+
+if __name__ == "__main__":
+    main()

@@ -1,9 +1,9 @@
 """
 Whose is the cell that a trained UAV team's places are off by, the critics' or the actors'? For a saved MADDPG model
 on ``uav_coverage_v1`` (``obs_size=16``, 300-step episodes, random starts), the team flies its deterministic policy;
-at the chosen steps, for each UAV i, 25 candidate moves are scored: the actor's own move and the same move shifted by
--1, -0.5, 0, 0.5 or 1 cell on each axis (shortened to l_max, kept inside the area), with the teammates' moves the
-actors'. Each candidate gets
+at the chosen steps, for each UAV i, 26 candidate moves are scored: the actor's own move, the same move shifted by
+-1, -0.5, 0, 0.5 or 1 cell on each axis (shortened to l_max, kept inside the area), and hovering, with the teammates'
+moves the actors'. Each candidate gets
 
 - the critic's score: the mean of critic i's quantiles (its first network) on the joint observation with UAV i's
   action replaced by the candidate (``quantiles_with_own_actions``, as the actor update scores it);
@@ -25,6 +25,10 @@ gains count at every later step.
 
     python experiments/critic_shift_view.py runs/p3/exact_tpn005_g09_mates_s0.zip --episodes 3 --steps 150 299
     python experiments/critic_shift_view.py MODEL --episodes 2 --steps 150 --rollout 30
+    python experiments/critic_shift_view.py runs/tmc/logs/n8_s0/maddpg/uav_coverage_tmc_v1_1/uav_coverage_tmc_v1.zip \
+        --tmc-uavs 8 --episodes 2 --steps 250 --rollout 30
+
+``--tmc-uavs N`` scores a model trained on ``uav_coverage_tmc_v1`` with N UAVs (its geometry, 500-step episodes).
 """
 
 import argparse
@@ -35,10 +39,13 @@ import torch as th
 from uav_learning import reject_removed_variants  # the sibling file, not a package
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.zoo.registry import TMC2020_KWARGS
 from sb3_maddpg_envs import uav_coverage_v1
 
 EVAL_SEED = 10_000  # the first evaluation episode of experiments/uav_learning.py and docs/results.md
 SHIFTS = np.array([(dx, dy) for dx in (-1.0, -0.5, 0.0, 0.5, 1.0) for dy in (-1.0, -0.5, 0.0, 0.5, 1.0)])
+ACTOR = int(np.argmin(np.abs(SHIFTS).sum(axis=1)))  # the unshifted candidate: the actor's own move
+HOVER = len(SHIFTS)  # the last candidate: no move
 
 
 def covered_pois(positions: np.ndarray, pois: np.ndarray, coverage_range: float) -> int:
@@ -65,11 +72,15 @@ def spearman(x: np.ndarray, y: np.ndarray) -> float:
 
 
 def candidate_moves(position: np.ndarray, own_move: np.ndarray, max_distance: float, map_size: float) -> np.ndarray:
-    """(25, 2) displacements: ``own_move`` shifted by SHIFTS, kept inside the area and shortened to l_max."""
+    """
+    (26, 2) displacements: ``own_move`` shifted by SHIFTS, kept inside the area and shortened to l_max, and hovering
+    (the last, index HOVER).
+    """
     ends = np.clip(position + own_move + SHIFTS, 0.0, np.nextafter(map_size, 0.0))
     moves = ends - position
     norms = np.linalg.norm(moves, axis=1, keepdims=True)
-    return moves * np.minimum(1.0, max_distance / np.maximum(norms, 1e-12))
+    moves = moves * np.minimum(1.0, max_distance / np.maximum(norms, 1e-12))
+    return np.concatenate([moves, np.zeros((1, 2))])
 
 
 def main() -> None:
@@ -80,15 +91,20 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=EVAL_SEED, help="seed of the first episode")
     parser.add_argument("--steps", type=int, nargs="+", default=[150, 299], help="steps at which moves are scored")
     parser.add_argument("--rollout", type=int, default=0, help="H > 0: each candidate's H-step return (slow)")
+    parser.add_argument("--tmc-uavs", type=int, default=0, help="N > 0: uav_coverage_tmc_v1 with N UAVs instead")
     args = parser.parse_args()
     reject_removed_variants(args.env_kwargs)
+    if args.tmc_uavs > 0:
+        env_kwargs = {**TMC2020_KWARGS, "n_uavs": args.tmc_uavs, **args.env_kwargs}
+    else:
+        env_kwargs = {"obs_size": 16, "max_cycles": 300, **args.env_kwargs}
     th.set_num_threads(1)
     model = MADDPG.load(args.model, device="cpu")
     policy = model.policy
     policy.set_training_mode(False)
     rows = []
     for episode in range(args.episodes):
-        env = uav_coverage_v1.parallel_env(obs_size=16, max_cycles=300, **args.env_kwargs)
+        env = uav_coverage_v1.parallel_env(**env_kwargs)
         observations, _ = env.reset(seed=args.seed + episode)
         core = env.core
         if core.action_mode != "cartesian":
@@ -100,7 +116,7 @@ def main() -> None:
             if step in args.steps:
                 scored = score_moves(model, core, stacked, actions, episode, step)
                 if args.rollout > 0:
-                    replay = (args.env_kwargs, args.seed + episode, history)
+                    replay = (env_kwargs, args.seed + episode, history)
                     for row in scored:
                         row.update(rollout_truth(model, replay, actions, row, args.rollout))
                 rows.extend(scored)
@@ -129,9 +145,9 @@ def summarise(rows: list[dict], rollout: int) -> None:
         f"{len(rows)} UAV-steps: a spot within a cell covers more PoIs in {len(better)} (mean gain "
         f"{np.mean([r['gain'] for r in rows]):.2f} PoIs, largest {int(max(r['gain'] for r in rows))}); where there "
         f"is one, the critic scores it above the actor's move in {share(better, 'critic_prefers_best'):.2f}; the "
-        f"actor's move is the critic's best of the 25 in {share(rows, 'own_is_critic_argmax'):.2f}; Spearman's rho "
+        f"actor's move is the critic's best of the 26 in {share(rows, 'own_is_critic_argmax'):.2f}; Spearman's rho "
         f"of the critic's scores with the covered PoIs: {spread([r['rho'] for r in rows])}; the critic's score range "
-        f"over the 25 moves: {spread([r['q_range'] for r in rows])}"
+        f"over the 26 moves: {spread([r['q_range'] for r in rows])}"
     )
     if clear:
         print(
@@ -141,6 +157,12 @@ def summarise(rows: list[dict], rollout: int) -> None:
             f"{spread([r['value_of_gain'] for r in clear])}; the spot's extra energy this step: "
             f"{spread([r['extra_energy'] for r in clear])}"
         )
+    moving = [r for r in rows if r["actor_distance"] > 0.25]
+    print(
+        f"the actor's move: {spread([r['actor_distance'] for r in rows])} of l_max; {len(moving)} UAV-steps move more "
+        f"than a quarter of l_max, and in {share(moving, 'critic_prefers_hover'):.2f} of them the critic scores "
+        f"hovering above the actor's move"
+    )
     if rollout > 0:
         improvable = [r for r in rows if r["return_gain"] > 0]
         print(
@@ -153,6 +175,12 @@ def summarise(rows: list[dict], rollout: int) -> None:
             f"there after the move) minus the actor's move and policy: "
             f"{spread([r['return_of_best_coverage_held'] for r in rows])}"
         )
+        if moving:
+            print(
+                f"where the actor moves more than a quarter of l_max: hovering this step (then the policy) minus the "
+                f"actor's move: {spread([r['return_of_hover'] for r in moving])}; hovering on for the whole horizon: "
+                f"{spread([r['return_of_hovering_on'] for r in moving])}"
+            )
 
 
 def rollout_truth(model: MADDPG, replay: tuple, actions: np.ndarray, row: dict, horizon: int) -> dict:
@@ -164,12 +192,15 @@ def rollout_truth(model: MADDPG, replay: tuple, actions: np.ndarray, row: dict, 
     actor, best = row["actor_index"], int(np.argmax(returns))
     # The best-coverage spot held: UAV i hovers there for the rest of the horizon, its teammates on their policy
     held = candidate_return(model, replay, actions, i, row["moves"][row["best_index"]], horizon, hold=True)
+    hovering = candidate_return(model, replay, actions, i, np.zeros(2), horizon, hold=True)
     return dict(
         rho_return=spearman(row["scores"], returns),
         return_gain=float(returns[best] - returns[actor]),
         critic_prefers_best_return=bool(row["scores"][best] > row["scores"][actor]),
         return_of_best_coverage=float(returns[row["best_index"]] - returns[actor]),
         return_of_best_coverage_held=float(held - returns[actor]),
+        return_of_hover=float(returns[HOVER] - returns[actor]),
+        return_of_hovering_on=float(hovering - returns[actor]),
     )
 
 
@@ -181,7 +212,7 @@ def candidate_return(
     hovers with ``hold``; its teammates follow their policy.
     """
     env_kwargs, seed, history = replay
-    env = uav_coverage_v1.parallel_env(obs_size=16, max_cycles=300, **env_kwargs)
+    env = uav_coverage_v1.parallel_env(**env_kwargs)
     observations, _ = env.reset(seed=seed)
     for past in history:
         observations, *_ = env.step({agent: past[j] for j, agent in enumerate(env.possible_agents)})
@@ -239,8 +270,7 @@ def score_moves(model: MADDPG, core, stacked: np.ndarray, actions: np.ndarray, e
             layout = next_positions.copy()
             layout[i] = positions[i] + move
             covered[c] = covered_pois(layout, core.pois, core.coverage_range)
-        actor = int(np.argmin(np.abs(SHIFTS).sum(axis=1)))  # the unshifted candidate: the actor's own move
-        best = int(np.argmax(covered))
+        actor, best = ACTOR, int(np.argmax(covered))
         rho = np.linalg.norm(moves, axis=1) / max_distance  # the step's energy: eta l + E_h (1 - rho), l = rho l_max
         energy = core.move_energy * rho * max_distance + core.hover_energy * (1.0 - rho)
         rows.append(
@@ -251,6 +281,8 @@ def score_moves(model: MADDPG, core, stacked: np.ndarray, actions: np.ndarray, e
                 gain=covered[best] - covered[actor],
                 critic_prefers_best=bool(scores[best] > scores[actor]),
                 own_is_critic_argmax=bool(np.argmax(scores) == actor),
+                actor_distance=float(np.linalg.norm(moves[actor]) / max_distance),
+                critic_prefers_hover=bool(scores[HOVER] > scores[actor]),
                 rho=spearman(scores, covered),
                 q_range=float(scores.max() - scores.min()),
                 q_gap=float(scores[best] - scores[actor]),

@@ -36,11 +36,14 @@ import json
 
 import numpy as np
 import torch as th
-from uav_learning import reject_removed_variants  # the sibling file, not a package
+from uav_learning import reject_removed_variants  # the sibling files, not a package
+from uav_team_positions import covers
 
 from sb3_maddpg import MADDPG
 from sb3_maddpg.zoo.registry import TMC2020_KWARGS
 from sb3_maddpg_envs import uav_coverage_v1
+from sb3_maddpg_envs.uav_coverage.dynamics import commanded_move, step_energy
+from sb3_maddpg_envs.uav_coverage.rewards import energy_cost
 
 EVAL_SEED = 10_000  # the first evaluation episode of experiments/uav_learning.py and docs/results.md
 SHIFTS = np.array([(dx, dy) for dx in (-1.0, -0.5, 0.0, 0.5, 1.0) for dy in (-1.0, -0.5, 0.0, 0.5, 1.0)])
@@ -50,8 +53,7 @@ HOVER = len(SHIFTS)  # the last candidate: no move
 
 def covered_pois(positions: np.ndarray, pois: np.ndarray, coverage_range: float) -> int:
     """How many PoIs lie within ``coverage_range`` of some position."""
-    inside = ((pois[None, :, :] - positions[:, None, :]) ** 2).sum(axis=-1) <= coverage_range**2
-    return int(inside.any(axis=0).sum())
+    return int(covers(positions, pois, coverage_range).any(axis=0).sum())
 
 
 def spearman(x: np.ndarray, y: np.ndarray) -> float:
@@ -71,16 +73,23 @@ def spearman(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.corrcoef(rx, ry)[0, 1])
 
 
-def candidate_moves(position: np.ndarray, own_move: np.ndarray, max_distance: float, map_size: float) -> np.ndarray:
+def as_actions(moves: np.ndarray, max_distance: float) -> np.ndarray:
+    """v1's Cartesian actions in [0, 1]^2 that command the displacements ``moves`` (each at most l_max long)."""
+    return (moves / max_distance + 1.0) / 2.0
+
+
+def candidate_moves(
+    position: np.ndarray, own_move: np.ndarray, max_distance: float, map_size: float
+) -> tuple[np.ndarray, np.ndarray]:
     """
-    (26, 2) displacements: ``own_move`` shifted by SHIFTS, kept inside the area and shortened to l_max, and hovering
-    (the last, index HOVER).
+    The 26 candidates: ``own_move`` shifted by SHIFTS, kept inside the area and shortened to l_max as the env shortens
+    a command (``commanded_move``), and hovering (the last, index HOVER).
+
+    :return: displacements (26, 2) and their distance ratios rho (26,)
     """
     ends = np.clip(position + own_move + SHIFTS, 0.0, np.nextafter(map_size, 0.0))
-    moves = ends - position
-    norms = np.linalg.norm(moves, axis=1, keepdims=True)
-    moves = moves * np.minimum(1.0, max_distance / np.maximum(norms, 1e-12))
-    return np.concatenate([moves, np.zeros((1, 2))])
+    moves, rho = commanded_move(as_actions(ends - position, max_distance), max_distance, "cartesian")
+    return np.concatenate([moves, np.zeros((1, 2))]), np.append(rho, 0.0)
 
 
 def main() -> None:
@@ -217,7 +226,7 @@ def candidate_return(
     for past in history:
         observations, *_ = env.step({agent: past[j] for j, agent in enumerate(env.possible_agents)})
     joint = actions.copy()
-    joint[i] = np.clip((move / env.core.max_distance + 1.0) / 2.0, 0.0, 1.0)
+    joint[i] = np.clip(as_actions(move, env.core.max_distance), 0.0, 1.0)
     total, discount = 0.0, 1.0
     for _ in range(horizon):
         if not env.agents:
@@ -239,10 +248,7 @@ def score_moves(model: MADDPG, core, stacked: np.ndarray, actions: np.ndarray, e
     max_distance, n_agents = core.max_distance, len(actions)
     # A PoI that UAV i alone covers is worth (N / K) (1 - phi c(k)) a step in its reward (v1's coverage reward)
     poi_worth = n_agents / len(core.pois) * (1.0 - core.fairness_coef * float(core.coverage_scores.mean()))
-    energy_scale = core.energy_coef / (core.move_energy * max_distance)
-    own_moves = (2.0 * actions - 1.0) * max_distance
-    norms = np.linalg.norm(own_moves, axis=1, keepdims=True)
-    own_moves = own_moves * np.minimum(1.0, max_distance / np.maximum(norms, 1e-12))
+    own_moves = commanded_move(actions, max_distance, core.action_mode)[0]
     positions = core.positions.copy()
     next_positions = np.clip(positions + own_moves, 0.0, np.nextafter(core.map_size, 0.0))
     with th.no_grad():
@@ -253,8 +259,8 @@ def score_moves(model: MADDPG, core, stacked: np.ndarray, actions: np.ndarray, e
     for i in range(n_agents):
         if not core.active[i]:
             continue
-        moves = candidate_moves(positions[i], own_moves[i], max_distance, core.map_size)
-        candidate_actions = policy.scale_action(np.clip((moves / max_distance + 1.0) / 2.0, 0.0, 1.0))
+        moves, rho = candidate_moves(positions[i], own_moves[i], max_distance, core.map_size)
+        candidate_actions = policy.scale_action(np.clip(as_actions(moves, max_distance), 0.0, 1.0))
         with th.no_grad():
             own = joint.repeat(len(moves), 1, 1)
             own[:, i] = th.as_tensor(candidate_actions, dtype=th.float32)
@@ -271,8 +277,16 @@ def score_moves(model: MADDPG, core, stacked: np.ndarray, actions: np.ndarray, e
             layout[i] = positions[i] + move
             covered[c] = covered_pois(layout, core.pois, core.coverage_range)
         actor, best = ACTOR, int(np.argmax(covered))
-        rho = np.linalg.norm(moves, axis=1) / max_distance  # the step's energy: eta l + E_h (1 - rho), l = rho l_max
-        energy = core.move_energy * rho * max_distance + core.hover_energy * (1.0 - rho)
+        # each candidate's energy this step (never short of battery here) and its weight in UAV i's reward
+        energy = step_energy(
+            rho,
+            np.ones(len(rho), dtype=bool),
+            np.full(len(rho), np.inf),
+            max_distance=max_distance,
+            move_energy=core.move_energy,
+            hover_energy=core.hover_energy,
+        )
+        energy_term = energy_cost(energy, core.energy_coef, core.move_energy, max_distance)
         rows.append(
             dict(
                 episode=episode,
@@ -281,13 +295,13 @@ def score_moves(model: MADDPG, core, stacked: np.ndarray, actions: np.ndarray, e
                 gain=covered[best] - covered[actor],
                 critic_prefers_best=bool(scores[best] > scores[actor]),
                 own_is_critic_argmax=bool(np.argmax(scores) == actor),
-                actor_distance=float(np.linalg.norm(moves[actor]) / max_distance),
+                actor_distance=float(rho[actor]),
                 critic_prefers_hover=bool(scores[HOVER] > scores[actor]),
                 rho=spearman(scores, covered),
                 q_range=float(scores.max() - scores.min()),
                 q_gap=float(scores[best] - scores[actor]),
                 value_of_gain=float((covered[best] - covered[actor]) * poi_worth / (1.0 - model.gamma)),
-                extra_energy=float((energy[best] - energy[actor]) * energy_scale),
+                extra_energy=float(energy_term[best] - energy_term[actor]),
                 moves=moves,
                 scores=scores,
                 actor_index=actor,

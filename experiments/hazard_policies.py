@@ -6,6 +6,11 @@ from the walls, where a gust can throw a UAV out) and one keeping a margin of 3.
 (``keep_margin``: less coverage, fewer crashes). The first should have the better mean team return, the second the
 better worst decile (the mean of the worst 10 % of the episodes).
 
+On a task with a storm zone (``--env uav_coverage_storm_cpu_v1``, or ``--env-kwargs storm_zone:[x0,y0,x1,y1]
+storm_prob:P ...``) the two policies are the greedy
+placement anywhere (``enter_storm``: spots inside the zone, where a strike can ground a hovering UAV) and the greedy
+placement outside the zone (``avoid_storm``: its inner PoIs lost, no strikes while hovering).
+
     taskset -c 1 python experiments/hazard_policies.py --episodes 200 --out experiments/results/2026-12-04-hazard
 
 It prints the table of ``python -m sb3_maddpg evaluate`` (mean ± std, worst decile, hazard events per episode) and
@@ -26,12 +31,17 @@ ENV_ID = "uav_coverage_hazard_cpu_v1"
 MARGIN = 3.5
 
 
-def policies(margin: float = MARGIN) -> list[GreedyStaticController]:
-    """The two hand-made policies: the greedy placement anywhere, and the greedy placement keeping ``margin``."""
+def policies(margin: float = MARGIN, storm: bool = False) -> list[GreedyStaticController]:
+    """
+    The two hand-made policies, the risky one first: the greedy placement anywhere, and the greedy placement keeping
+    ``margin`` from the walls (or, with ``storm``, keeping out of the storm zone).
+    """
+    if storm:
+        return [GreedyStaticController("enter_storm"), GreedyStaticController("avoid_storm", avoid_storm=True)]
     return [GreedyStaticController("hug_walls"), GreedyStaticController("keep_margin", wall_margin=margin)]
 
 
-def compare(n_episodes: int, seed: int = 0, margin: float = MARGIN, **env_kwargs: Any) -> dict[str, Any]:
+def compare(n_episodes: int, seed: int = 0, margin: float = MARGIN, env_id: str = ENV_ID, **env_kwargs: Any) -> dict[str, Any]:
     """
     Run both policies on the same ``n_episodes`` episodes (episode e has seed ``seed + e``: the same starts and the
     same gusts while the UAVs are in the same places).
@@ -39,17 +49,20 @@ def compare(n_episodes: int, seed: int = 0, margin: float = MARGIN, **env_kwargs
     :param n_episodes: episodes per policy
     :param seed: seed of the first episode
     :param margin: the cautious policy's wall margin
+    :param env_id: the registered task
     :param env_kwargs: over the registered env's (``start`` is ``"random"`` already, v1's default)
     :return: ``results`` (policy -> per-episode metrics) and ``summary`` (rows of ``summarize``)
     """
+    storm = make_multiagent_env(env_id, **env_kwargs).core.storm_prob > 0.0
     results, _ = evaluate_controllers(
-        lambda: make_multiagent_env(ENV_ID, **env_kwargs), policies(margin), n_episodes, seed=seed
+        lambda: make_multiagent_env(env_id, **env_kwargs), policies(margin, storm), n_episodes, seed=seed
     )
     return {"results": results, "summary": summarize(results)}
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--env", default=ENV_ID, help=f"the registered task (default {ENV_ID})")
     parser.add_argument("--episodes", type=int, default=200, help="episodes per policy")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first episode")
     parser.add_argument("--margin", type=float, default=MARGIN, help="the cautious policy's wall margin (cells)")
@@ -70,13 +83,13 @@ def main(argv: list[str] | None = None) -> int:
         env_kwargs.update(parse_key_values(args.env_kwargs, "--env-kwargs"))
     except UsageError as error:
         parser.error(str(error))
-    report = compare(args.episodes, args.seed, args.margin, **env_kwargs)
+    report = compare(args.episodes, args.seed, args.margin, args.env, **env_kwargs)
     summary = {row["method"]: row for row in report["summary"]}
-    print(f"{ENV_ID} {env_kwargs}, {args.episodes} episodes per policy, seeds {args.seed}..{args.seed + args.episodes - 1}")
+    print(f"{args.env} {env_kwargs}, {args.episodes} episodes per policy, seeds {args.seed}..{args.seed + args.episodes - 1}")
     print(format_table(report["summary"]))
     if args.out:
         metadata = {
-            "env_id": ENV_ID,
+            "env_id": args.env,
             "env_kwargs": env_kwargs,
             "n_episodes": args.episodes,
             "seed": args.seed,
@@ -85,11 +98,12 @@ def main(argv: list[str] | None = None) -> int:
         }
         write_results(args.out, report["results"], report["summary"], metadata)
         print(f"written to {args.out}")
-    hug, margin = summary["hug_walls"], summary["keep_margin"]
-    differ = hug["return_mean"] > margin["return_mean"] and hug["return_worst_decile"] < margin["return_worst_decile"]
+    risky, cautious = (summary[row["method"]] for row in report["summary"][:2])
+    differ = risky["return_mean"] > cautious["return_mean"] and risky["return_worst_decile"] < cautious["return_worst_decile"]
     print(
-        f"mean: hug_walls {hug['return_mean']:.1f}, keep_margin {margin['return_mean']:.1f}; "
-        f"worst decile: hug_walls {hug['return_worst_decile']:.1f}, keep_margin {margin['return_worst_decile']:.1f}; "
+        f"mean: {risky['method']} {risky['return_mean']:.1f}, {cautious['method']} {cautious['return_mean']:.1f}; "
+        f"worst decile: {risky['method']} {risky['return_worst_decile']:.1f}, "
+        f"{cautious['method']} {cautious['return_worst_decile']:.1f}; "
         f"the optima {'differ' if differ else 'do NOT differ'}"
     )
     return 0 if differ else 1

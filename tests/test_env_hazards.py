@@ -1,5 +1,5 @@
-"""The hazards (wind gusts, crashes, link failures): formulas against values worked out by hand, the argument checks,
-the hazardous env id (PettingZoo API, seeding) and the defaults left unchanged."""
+"""The hazards (wind gusts, crashes, link failures, the storm zone): formulas against values worked out by hand, the
+argument checks, the hazardous and storm env ids (PettingZoo API, seeding) and the defaults left unchanged."""
 
 import numpy as np
 import pytest
@@ -9,7 +9,14 @@ from sb3_maddpg.evaluation.baselines import GreedyStaticController, greedy_place
 from sb3_maddpg.zoo.registry import make_multiagent_env
 from sb3_maddpg_envs import uav_coverage_v1
 from sb3_maddpg_envs.uav_coverage.core import UAVCoverageCore
-from sb3_maddpg_envs.uav_coverage.hazards import crash_drain, gust_push, push_within_walls, surviving_links
+from sb3_maddpg_envs.uav_coverage.hazards import (
+    crash_drain,
+    gust_push,
+    in_zone,
+    push_within_walls,
+    storm_strikes,
+    surviving_links,
+)
 
 HOVER = [0.5, 0.5]  # v1's Cartesian action that hovers
 
@@ -22,7 +29,7 @@ class ScriptedDraws:
 
     def random(self, shape):
         draw = self.draws.pop(0)
-        assert draw.shape == tuple(shape)
+        assert draw.shape == ((shape,) if isinstance(shape, int) else tuple(shape))
         return draw
 
 
@@ -298,3 +305,137 @@ def test_a_grounded_team_is_not_a_terminated_episode():
         assert rewards.tolist() == [-1.0] and not terminated and not truncated
         assert core.last_energy_spent.tolist() == [0.0]
     assert core.active.tolist() == [True]
+
+
+# --- the storm zone -------------------------------------------------------------------------------------------------
+ZONE = (3.0, 3.0, 13.0, 13.0)
+
+
+def test_in_zone_includes_the_lower_edges_and_excludes_the_upper_ones():
+    positions = np.array([[3.0, 3.0], [12.999, 8.0], [13.0, 8.0], [8.0, 2.999], [0.0, 0.0], [8.0, 8.0]])
+    assert in_zone(positions, ZONE).tolist() == [True, True, False, False, False, True]
+
+
+def test_storm_strikes_only_active_uavs_inside_the_zone_below_p_s():
+    # UAV 0 inside, draw 0.004 < 0.005: struck; UAV 1 inside, draw 0.006: not; UAV 2 outside, draw 0: not;
+    # UAV 3 inside, draw 0, but inactive: not
+    positions = np.array([[5.0, 5.0], [8.0, 8.0], [1.0, 1.0], [10.0, 10.0]])
+    struck = storm_strikes(
+        np.array([0.004, 0.006, 0.0, 0.0]),
+        positions,
+        np.array([True, True, True, False]),
+        zone=ZONE,
+        storm_prob=0.005,
+    )
+    assert struck.tolist() == [True, False, False, False]
+
+
+def test_a_strike_grounds_the_uav_where_it_is_for_k_steps():
+    # UAV 0 hovers at (8, 8), inside the zone, and is struck at step 1 (draw 0.001 < p_s = 0.01); UAV 1 at (2, 8),
+    # outside (and in radio range, 6 cells), draws 0 and is not struck. UAV 0 is not moved, pays no p_w at the strike
+    # (no wall), loses E_c = 20 energy with the hover's 0.5, sits out steps 2 and 3 charged p_d = 0.4, and counts one
+    # crash.
+    core = core_with(
+        [[8.0, 8.0], [2.0, 8.0]],
+        [[0.001, 0.0], [0.9, 0.9], [0.9, 0.9], [0.9, 0.9]],
+        storm_zone=ZONE,
+        storm_prob=0.01,
+        crash_energy=20.0,
+        crash_ground_steps=2,
+        grounded_penalty=0.4,
+    )
+    energy_before = core.energy.copy()
+    core.step(np.array([HOVER, HOVER]))
+    assert core.last_crashed.tolist() == [True, False]
+    np.testing.assert_allclose(core.positions, [[8.0, 8.0], [2.0, 8.0]])
+    np.testing.assert_allclose(energy_before - core.energy, [20.5, 0.5])
+    np.testing.assert_allclose(core.last_penalties, [0.0, 0.0])
+    assert core.active.tolist() == [False, True] and core.grounded_steps_left.tolist() == [2, 0]
+    for _ in (2, 3):
+        _, rewards, _, _ = core.step(np.array([HOVER, HOVER]))
+        assert rewards[0] == pytest.approx(-0.4)
+        np.testing.assert_allclose(core.last_energy_spent, [0.0, 0.5])
+    assert core.active.tolist() == [True, True]
+    core.step(np.array([HOVER, HOVER]))  # flies again: no longer grounded (draws 0.9 >= p_s)
+    assert core.last_energy_spent.tolist() == [0.5, 0.5]
+    assert [info["crashes"] for info in core.infos()] == [1, 0]
+    assert [info["gusts"] for info in core.infos()] == [0, 0]
+
+
+def test_the_storm_strikes_where_the_uav_is_after_its_move():
+    # UAV 0 starts at (2, 8), outside, and moves a full 3 cells east to (5, 8), inside: struck (draw 0)
+    core = core_with([[2.0, 8.0]], [[0.0]], storm_zone=ZONE, storm_prob=0.5, crash_ground_steps=1, grounded_penalty=0.1)
+    core.step(np.array([[1.0, 0.5]]))
+    np.testing.assert_allclose(core.positions, [[5.0, 8.0]])
+    assert core.last_crashed.tolist() == [True]
+
+
+@pytest.mark.parametrize(
+    "zone", [(0, 0, 16), (5, 5, 5, 9), (3, 3, 2, 9), (-1, 0, 4, 4), (0, 0, 17, 4), "middle", (0, 0, float("nan"), 4)]
+)
+def test_bad_storm_zones_are_refused(zone):
+    with pytest.raises(ValueError, match="storm_zone must be None or four numbers"):
+        UAVCoverageCore(obs_size=16, storm_zone=zone)
+
+
+def test_storm_prob_needs_a_zone_and_a_cost():
+    with pytest.raises(ValueError, match="storm_prob=0.1 needs a storm_zone"):
+        UAVCoverageCore(obs_size=16, storm_prob=0.1)
+    with pytest.raises(ValueError, match="storm_prob=0.1 needs crash_ground_steps >= 1 or crash_energy > 0"):
+        UAVCoverageCore(obs_size=16, storm_zone=ZONE, storm_prob=0.1)
+    with pytest.raises(ValueError, match="storm_prob must be a finite number >= 0 and <= 1"):
+        UAVCoverageCore(obs_size=16, storm_zone=ZONE, storm_prob=1.5, crash_ground_steps=1)
+    # a zone without strikes is accepted and draws nothing (a control run)
+    core = UAVCoverageCore(**uav_coverage_v1.V1_DEFAULTS, obs_size=16, storm_zone=ZONE)
+    core.reset(seed=0)
+    core._rng = NoDraws()
+    core.step(np.full((6, 2), 0.5))
+    assert not core.hazards
+
+
+def test_storm_env_id_switches_the_storm_on():
+    env = make_multiagent_env("uav_coverage_storm_cpu_v1")
+    core = env.core
+    assert core.storm_zone == uav_coverage_v1.STORM["storm_zone"] and core.storm_prob == uav_coverage_v1.STORM["storm_prob"]
+    assert (core.crash_ground_steps, core.grounded_penalty) == (20, 0.75)
+    assert core.gust_prob == 0.0 and core.link_failure_prob == 0.05
+    assert env.observation_space("uav_0").shape == (4, 16, 16)
+
+
+#: strikes frequent enough for a short test
+STORM_OFTEN = {"storm_prob": 0.2}
+
+
+@pytest.mark.parametrize("kwargs", [{}, STORM_OFTEN], ids=["registered", "often"])
+def test_storm_env_parallel_api(kwargs):
+    parallel_api_test(make_multiagent_env("uav_coverage_storm_cpu_v1", n_uavs=3, max_cycles=40, **kwargs), num_cycles=60)
+
+
+def test_storm_env_parallel_seed():
+    parallel_seed_test(lambda: make_multiagent_env("uav_coverage_storm_cpu_v1", n_uavs=3, **STORM_OFTEN), num_cycles=30)
+
+
+def test_storm_episodes_are_reproducible_from_the_seed():
+    def play(seed):
+        env = make_multiagent_env("uav_coverage_storm_cpu_v1", max_cycles=40, **STORM_OFTEN)
+        env.reset(seed=seed)
+        rng = np.random.default_rng(0)
+        returns, crashes = 0.0, 0
+        while env.agents:
+            _, rewards, _, _, infos = env.step({agent: rng.random(2) for agent in env.agents})
+            returns += sum(rewards.values())
+            crashes = sum(info["crashes"] for info in infos.values())
+        return returns, crashes
+
+    assert play(3) == play(3)
+    assert play(3) != play(4)
+    assert play(3)[1] > 0  # the strikes happen
+
+
+def test_avoid_storm_keeps_the_spots_out_of_the_zone():
+    grid = np.argwhere(np.ones((16, 16))).astype(float) + 0.5
+    spots = greedy_placement(grid, 6, 16, 3.0, 6.0, avoid_zone=ZONE)
+    assert not in_zone(spots, ZONE).any()
+    assert in_zone(greedy_placement(grid, 6, 16, 3.0, 6.0), ZONE).any()  # the greedy spots without it are inside
+    with pytest.raises(ValueError, match="avoid_zone=.* leaves no cell centre"):
+        greedy_placement(grid, 6, 16, 3.0, avoid_zone=(0, 0, 16, 16))

@@ -24,11 +24,11 @@ import os
 import numpy as np
 
 from .dynamics import ACTION_MODES, WALL_MODES, commanded_move, linked, move_within_walls, step_energy
-from .hazards import HAZARD_COUNTS, crash_drain, gust_push, push_within_walls, surviving_links
+from .hazards import HAZARD_COUNTS, crash_drain, gust_push, push_within_walls, storm_strikes, surviving_links
 from .observations import POSITION_MARKS, ObservationDrawer, uav_values
 from .pois import lattice_pois, load_poi_image, pois_from_image
 from .rewards import REWARD_MODES, cell_entropy, coverage_credit, covering_pairs, energy_cost, report_reward, team_metrics
-from .validation import check_choice, check_int, check_points, check_real
+from .validation import check_choice, check_int, check_points, check_real, check_zone
 
 __all__ = [
     "ACTION_MODES",
@@ -112,6 +112,13 @@ class UAVCoverageCore:
         then spread over k steps of lost coverage instead of one step's energy (``crash_energy``)
     :param grounded_penalty: p_d, charged to a grounded UAV at each of its grounded steps (its reward is then
         -``reward_scale`` p_d where a depleted UAV's is 0); needs ``crash_ground_steps`` > 0
+    :param storm_zone: hazard: a rectangle (x0, y0, x1, y1) of the area where a storm can strike a UAV down (None, the
+        default, is no zone); the same in every episode, like terrain, and not drawn in the observations: a policy
+        learns where it is from its own position
+    :param storm_prob: p_s, hazard: the probability that an active UAV inside ``storm_zone`` at the end of a step is
+        struck (0, the default, is never). A strike does not move the UAV; it is a crash: it loses ``crash_energy``
+        and is grounded for ``crash_ground_steps`` (one of the two must be set), counted in the ``crashes``. So the
+        zone's PoIs are worth covering on average and costly in the worst case
     """
 
     def __init__(
@@ -150,6 +157,8 @@ class UAVCoverageCore:
         link_failure_prob: float = 0.0,
         crash_ground_steps: int = 0,
         grounded_penalty: float = 0.0,
+        storm_zone: tuple[float, float, float, float] | list[float] | None = None,
+        storm_prob: float = 0.0,
     ) -> None:
         # --- configuration, validated where it enters -------------------------------------------------------------
         self.map_size = check_int("map_size", map_size, 1)
@@ -200,8 +209,20 @@ class UAVCoverageCore:
                 f"grounded_penalty={grounded_penalty!r} needs crash_ground_steps >= 1 (without grounding no UAV is "
                 "ever grounded); set crash_ground_steps or leave grounded_penalty at 0"
             )
+        self.storm_zone = check_zone("storm_zone", storm_zone, self.map_size)
+        self.storm_prob = check_real("storm_prob", storm_prob, low_inclusive=True, high=1.0, high_inclusive=True)
+        if self.storm_prob > 0.0 and self.storm_zone is None:
+            raise ValueError(
+                f"storm_prob={storm_prob!r} needs a storm_zone (x0, y0, x1, y1) where the storm strikes; set storm_zone "
+                "or leave storm_prob at 0"
+            )
+        if self.storm_prob > 0.0 and self.crash_ground_steps == 0 and self.crash_energy == 0.0:
+            raise ValueError(
+                f"storm_prob={storm_prob!r} needs crash_ground_steps >= 1 or crash_energy > 0 (a strike costs what a "
+                "crash costs, and with both at 0 it would cost nothing); set one of them or leave storm_prob at 0"
+            )
         #: Whether a hazard is switched on (the infos then hold the hazard counters).
-        self.hazards = self.gust_prob > 0.0 or self.link_failure_prob > 0.0
+        self.hazards = self.gust_prob > 0.0 or self.link_failure_prob > 0.0 or self.storm_prob > 0.0
         #: Channels of an agent's observation: 3, or 4 with the teammate channel.
         self.n_obs_channels = 4 if self.teammate_channel else 3
         self._images = ObservationDrawer(self.map_size, self.obs_size, self.position_mark)
@@ -438,9 +459,19 @@ class UAVCoverageCore:
             )
             crashed = push_within_walls(self.positions, push, hit, self.map_size)
             self.last_gust[...] = push
-            self.last_crashed[...] = crashed
+
+        # 3c. Hazard: the storm strikes UAVs inside its zone where they are now; a strike is a crash without the wall
+        # (no p_w). One draw per UAV and step, so the stream stays aligned.
+        struck = None
+        if self.storm_prob > 0.0:
+            struck = storm_strikes(
+                self._rng.random(self.n_uavs), self.positions, active, zone=self.storm_zone, storm_prob=self.storm_prob
+            )
+        downed = crashed if struck is None else struck if crashed is None else crashed | struck
+        if downed is not None:
+            self.last_crashed[...] = downed
             # grounded from the next step on, for k steps
-            self.grounded_steps_left[crashed] = self.crash_ground_steps
+            self.grounded_steps_left[downed] = self.crash_ground_steps
 
         # 4. Energy, charged also for a refused move, never more than what is left; a crash costs E_c more.
         spent = step_energy(
@@ -451,8 +482,8 @@ class UAVCoverageCore:
             move_energy=self.move_energy,
             hover_energy=self.hover_energy,
         )
-        if crashed is not None:
-            spent += crash_drain(crashed, self.energy - spent, self.crash_energy)
+        if downed is not None:
+            spent += crash_drain(downed, self.energy - spent, self.crash_energy)
         self.energy -= spent
         step_energy_sum = float(spent.sum())
         self.total_energy_spent += step_energy_sum
@@ -539,7 +570,8 @@ class UAVCoverageCore:
             counts = self.hazard_counts
             if hit is not None:
                 counts["gusts"] += hit
-                counts["crashes"] += crashed
+            if downed is not None:
+                counts["crashes"] += downed
             if cut_off is not None:
                 counts["link_failures"] += cut_off
             counts["depletions"] += active & ~flying

@@ -1,10 +1,12 @@
 """
 Hazards a team can avoid at a cost (all off by default): wind gusts that push a UAV by a heavy-tailed distance, and
-crash it when they throw it against the boundary, and radio links that fail at random.
+crash it when they throw it against the boundary, radio links that fail at random, and a storm zone where a UAV can
+be struck down.
 
 They make rare losses of energy, of connectivity and of coverage (the source report's motivation for CVaR) depend on
 where the team flies: a UAV near a wall is the one a gust can crash, a UAV with a single neighbour is the one a link
-failure cuts off. Keeping a margin costs coverage on average and buys a better worst case.
+failure cuts off, a UAV inside the storm zone is the one a strike can ground. Keeping a margin costs coverage on
+average and buys a better worst case.
 
 Shapes (N UAVs): ``positions`` (N, 2) float64, ``active`` (N,) bool, ``links`` (N, N) bool. The random numbers are
 passed in (drawn by the core from the env's own generator, a fixed number per step), so every function here is a
@@ -17,7 +19,7 @@ import math
 
 import numpy as np
 
-__all__ = ["HAZARD_COUNTS", "crash_drain", "gust_push", "push_within_walls", "surviving_links"]
+__all__ = ["HAZARD_COUNTS", "crash_drain", "gust_push", "in_zone", "push_within_walls", "storm_strikes", "surviving_links"]
 
 #: The per-agent hazard counters in the infos (only when a hazard is switched on).
 HAZARD_COUNTS = ("gusts", "crashes", "link_failures", "depletions")
@@ -91,3 +93,33 @@ def surviving_links(links: np.ndarray, draws: np.ndarray, link_failure_prob: flo
     """
     failed = np.triu(draws < link_failure_prob, k=1)
     return links & ~(failed | failed.T)
+
+
+def in_zone(positions: np.ndarray, zone: tuple[float, float, float, float]) -> np.ndarray:
+    """
+    Which UAVs are inside a rectangle of the map, lower edges included and upper edges excluded (as a cell is).
+
+    :param positions: (N, 2)
+    :param zone: (x0, y0, x1, y1), x0 < x1 and y0 < y1
+    :return: (N,) bool
+    """
+    x0, y0, x1, y1 = zone
+    x, y = positions[:, 0], positions[:, 1]
+    return (x >= x0) & (x < x1) & (y >= y0) & (y < y1)
+
+
+def storm_strikes(
+    draws: np.ndarray, positions: np.ndarray, active: np.ndarray, *, zone: tuple[float, float, float, float], storm_prob: float
+) -> np.ndarray:
+    """
+    The storm's strikes of one step: an active UAV inside the zone (where it is at the end of the step) is struck when
+    u_i < p_s. Unlike a gust, a strike does not move the UAV: its risk depends only on where the UAV chooses to be.
+
+    :param draws: (N,) uniform draws in [0, 1)
+    :param positions: (N, 2) after the step's moves and gusts
+    :param active: (N,) bool, only active UAVs are struck
+    :param zone: (x0, y0, x1, y1), the storm zone
+    :param storm_prob: p_s, the probability that a UAV inside the zone is struck at a step
+    :return: struck (N,) bool
+    """
+    return active & in_zone(positions, zone) & (draws < storm_prob)

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["MAX_REAL", "MIN_POSITIVE", "check_choice", "check_int", "check_points", "check_real"]
+__all__ = ["MAX_REAL", "MIN_POSITIVE", "check_choice", "check_int", "check_points", "check_real", "check_zone"]
 
 # Bounds of every real parameter: with them, squared ranges, energies times distances, rewards times reward_scale and
 # quotients by eps stay finite and non-zero, so every accepted configuration runs.
@@ -70,3 +70,22 @@ def check_points(name: str, value: Any, n_rows: int | None, map_size: int) -> np
     if not np.isfinite(points).all() or (points < 0).any() or (points >= map_size).any():
         raise ValueError(f"{name} must lie inside the area [0, {map_size})^2, got {points.tolist()!r}")
     return points
+
+
+def check_zone(name: str, value: Any, map_size: int) -> tuple[float, float, float, float] | None:
+    """Check a rectangle (x0, y0, x1, y1) of the area [0, L]^2 with x0 < x1 and y0 < y1, or None."""
+    if value is None:
+        return None
+    accepted = f"None or four numbers (x0, y0, x1, y1) with 0 <= x0 < x1 <= {map_size} and 0 <= y0 < y1 <= {map_size}"
+    if isinstance(value, (str, bytes)):
+        raise ValueError(f"{name} must be {accepted}, got {value!r}")
+    try:
+        corners = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{name} must be {accepted}, got {value!r}") from error
+    if corners.shape != (4,) or not np.isfinite(corners).all():
+        raise ValueError(f"{name} must be {accepted}, got {value!r}")
+    x0, y0, x1, y1 = (float(c) for c in corners)
+    if not (0.0 <= x0 < x1 <= map_size and 0.0 <= y0 < y1 <= map_size):
+        raise ValueError(f"{name} must be {accepted}, got {value!r}")
+    return x0, y0, x1, y1

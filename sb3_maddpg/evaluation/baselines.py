@@ -75,6 +75,7 @@ def greedy_placement(
     comm_range: float | None = None,
     link_margin: float = 0.05,
     wall_margin: float = 0.0,
+    avoid_zone: tuple[float, float, float, float] | None = None,
 ) -> np.ndarray:
     """
     Hover spots chosen greedily for maximum coverage: among the centres of the map's cells, pick one spot at a time
@@ -93,6 +94,8 @@ def greedy_placement(
         the flights there cannot put two UAVs just out of range
     :param wall_margin: only cell centres at least this far from every wall are candidates (0: all of them); a
         margin keeps the UAVs away from where a gust can throw them against the boundary, at a cost in coverage
+    :param avoid_zone: a rectangle (x0, y0, x1, y1) whose cell centres are not candidates (None: none), e.g. the storm
+        zone of the hazardous task: its PoIs are then covered from its edges only
     :return: (n_uavs, 2) spots
     """
     centres = np.arange(map_size, dtype=np.float64) + 0.5
@@ -101,6 +104,12 @@ def greedy_placement(
         raise ValueError(f"wall_margin={wall_margin!r} leaves no cell centre of a {map_size} x {map_size} map as a spot")
     xx, yy = np.meshgrid(centres, centres, indexing="xy")
     candidates = np.stack([xx.ravel(), yy.ravel()], axis=1)  # (C, 2)
+    if avoid_zone is not None:
+        from sb3_maddpg_envs.uav_coverage.hazards import in_zone
+
+        candidates = candidates[~in_zone(candidates, avoid_zone)]
+        if len(candidates) == 0:
+            raise ValueError(f"avoid_zone={avoid_zone!r} leaves no cell centre of a {map_size} x {map_size} map as a spot")
     diff = candidates[:, None, :] - np.asarray(pois, dtype=np.float64)[None, :, :]
     covers = np.einsum("ckd,ckd->ck", diff, diff) <= coverage_range**2  # (C, K)
 
@@ -186,12 +195,17 @@ class GreedyStaticController:
     :param connected: keep the spots within communication range of each other where possible
     :param wall_margin: only spots at least this far from every wall (0: anywhere); on an env with wind gusts a
         margin trades coverage for fewer crashes
+    :param avoid_storm: only spots outside the env's storm zone (``storm_zone``; anywhere when it has none), which
+        trades the coverage of the zone's inner PoIs for no strikes while hovering
     """
 
-    def __init__(self, name: str = "greedy_static", connected: bool = True, wall_margin: float = 0.0) -> None:
+    def __init__(
+        self, name: str = "greedy_static", connected: bool = True, wall_margin: float = 0.0, avoid_storm: bool = False
+    ) -> None:
         self.name = name
         self.connected = connected
         self.wall_margin = check_number("wall_margin", wall_margin, 0.0)
+        self.avoid_storm = bool(avoid_storm)
         self.targets: np.ndarray | None = None
 
     def reset(self, env: ParallelEnv, seed: int | None = None) -> None:
@@ -203,6 +217,7 @@ class GreedyStaticController:
             core.coverage_range,
             core.comm_range if self.connected else None,
             wall_margin=self.wall_margin,
+            avoid_zone=getattr(core, "storm_zone", None) if self.avoid_storm else None,
         )
         self.targets = assign_targets(core.positions, spots)
 

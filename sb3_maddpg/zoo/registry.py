@@ -175,6 +175,9 @@ register_multiagent_env("uav_coverage_tmc_v1", "sb3_maddpg_envs.uav_coverage_v1:
 # The hazardous task on the CPU variant: wind gusts that crash a UAV near a wall and radio links that fail
 # (uav_coverage_v1.HAZARDS), where the risk-neutral and the risk-averse optimum differ (docs/environment.md, "Hazards").
 register_multiagent_env("uav_coverage_hazard_cpu_v1", "sb3_maddpg_envs.uav_coverage_v1:hazard_parallel_env", {"obs_size": 16})
+# The storm task on the CPU variant: a storm over the middle of the map that grounds a UAV it strikes
+# (uav_coverage_v1.STORM; docs/environment.md, "Hazards"), where the risk-neutral and the risk-averse optimum differ.
+register_multiagent_env("uav_coverage_storm_cpu_v1", "sb3_maddpg_envs.uav_coverage_v1:storm_parallel_env", {"obs_size": 16})
 register_multiagent_env("simple_spread_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": True})
 # The same task with MPE2's default Discrete(5) actions (no-op, left, right, down, up), as in the MADDPG paper: the
 # actors learn through the straight-through Gumbel-softmax (docs/algorithm.md, "Discrete actions").

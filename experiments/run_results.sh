@@ -113,6 +113,13 @@ for alpha in 05 025 01; do  # hz_a05: cvar_alpha 0.5, ...
 done
 ALGO[hz_a1]="${ALGO[fast_b32_q25_anchor]}"
 for config in hz_a1 hz_a05 hz_a025 hz_a01; do POLICY[$config]="${POLICY[fast_b32_q25]}"; done
+# The alpha sweep on the storm task (uav_coverage_storm_cpu_v1: a storm over the middle of the map grounds the UAVs it
+# strikes; no gusts): the same five configurations, trained from scratch (hazards that never move a UAV do not crash
+# the early random actions' UAVs out of the episode), 100 evaluation episodes
+for config in classic a1 a05 a025 a01; do
+  ENV[st_$config]=uav_coverage_storm_cpu_v1; ENV_KWARGS[st_$config]="${ENV_KWARGS[hz_$config]}"; STEPS[st_$config]=28000
+  EPISODES[st_$config]=100; ALGO[st_$config]="${ALGO[hz_$config]}"; POLICY[st_$config]="${POLICY[hz_$config]}"
+done
 # The same five with the critics' mean fitted by the squared TD error (mean_loss "squared"): a crash's reward of about
 # -100 counts in full, where the Huber loss (kappa 1) weighs it as about -1
 for config in hz_classic hz_a1 hz_a05 hz_a025 hz_a01; do

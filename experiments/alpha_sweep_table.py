@@ -1,0 +1,124 @@
+"""
+The alpha sweep's table and figure: evaluation folders of ``python -m sb3_maddpg evaluate`` (one per variant and
+seed, named ``eval_<variant>_s<seed>``, as ``hazard_finetune.sh`` writes them) read back, one row per variant with the
+mean ± std over seeds of each seed's mean team return, worst-decile team return (the mean of its worst 10 % of
+episodes), hazard events per episode, c_T, f_T and eta_T; then one line per seed; and a figure of the mean against the
+worst decile, one point per variant and seed.
+
+    python experiments/alpha_sweep_table.py runs/storm --variants calm a1.0 a0.5 a0.25 a0.1 calmclassic classic \
+        --figure docs/figures/storm_alpha_sweep.png
+
+A variant is the part of the folder name between ``eval_`` and ``_s<seed>``; its label in the table is the variant
+name unless ``--labels`` gives one per variant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import statistics
+import sys
+from pathlib import Path
+
+#: (key in the summary row, column title, digits)
+COLUMNS = (
+    ("return_mean", "team return", 1),
+    ("return_worst_decile", "worst-decile team return", 1),
+    ("crashes_mean", "crashes (strikes) / episode", 2),
+    ("link_failures_mean", "link failures / episode", 1),
+    ("depletions_mean", "depletions / episode", 2),
+    ("coverage_mean", "c_T", 3),
+    ("fairness_mean", "f_T", 3),
+    ("energy_efficiency_mean", "η_T", 3),
+)
+
+
+def read_rows(folder: Path, method: str = "maddpg") -> dict[str, dict[int, dict[str, float]]]:
+    """
+    The summary rows of the evaluations in ``folder``: variant -> seed -> row.
+
+    :param folder: the folder holding ``eval_<variant>_s<seed>/results.json``
+    :param method: the evaluated method's row (``evaluate`` writes the baselines' rows beside it)
+    """
+    rows: dict[str, dict[int, dict[str, float]]] = {}
+    for results in sorted(folder.glob("eval_*_s*/results.json")):
+        match = re.fullmatch(r"eval_(.+)_s(\d+)", results.parent.name)
+        if match is None:
+            continue
+        summary = {row["method"]: row for row in json.loads(results.read_text())["summary"]}
+        if method in summary:
+            rows.setdefault(match.group(1), {})[int(match.group(2))] = summary[method]
+    return rows
+
+
+def mean_std(values: list[float], digits: int) -> str:
+    if len(values) == 1:
+        return f"{values[0]:.{digits}f}"
+    return f"{statistics.mean(values):.{digits}f} ± {statistics.stdev(values):.{digits}f}"
+
+
+def table(rows: dict[str, dict[int, dict[str, float]]], variants: list[str], labels: list[str]) -> str:
+    """The markdown table: one row per variant, mean ± std over its seeds, then each seed's mean and worst decile."""
+    head = ["variant", "seeds", *(title for _, title, _ in COLUMNS), "mean / worst decile by seed"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for variant, label in zip(variants, labels, strict=True):
+        by_seed = rows.get(variant, {})
+        if not by_seed:
+            lines.append(f"| {label} | (none) |" + " |" * (len(head) - 2))
+            continue
+        seeds = sorted(by_seed)
+        cells = [mean_std([by_seed[s][key] for s in seeds], digits) for key, _, digits in COLUMNS]
+        per_seed = ", ".join(f"{by_seed[s]['return_mean']:.1f} / {by_seed[s]['return_worst_decile']:.1f}" for s in seeds)
+        lines.append(f"| {label} | {', '.join(map(str, seeds))} | " + " | ".join(cells) + f" | {per_seed} |")
+    return "\n".join(lines)
+
+
+def figure(rows: dict[str, dict[int, dict[str, float]]], variants: list[str], labels: list[str], path: Path) -> None:
+    """Mean team return against the worst-decile team return, one point per variant and seed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    markers = "osD^vP*Xh"
+    for index, (variant, label) in enumerate(zip(variants, labels, strict=True)):
+        by_seed = rows.get(variant, {})
+        if not by_seed:
+            continue
+        xs = [row["return_mean"] for row in by_seed.values()]
+        ys = [row["return_worst_decile"] for row in by_seed.values()]
+        ax.scatter(xs, ys, marker=markers[index % len(markers)], s=48, label=label)
+    ax.set_xlabel("mean team return (100 episodes)")
+    ax.set_ylabel("worst-decile team return")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("folder", type=Path, help="the folder of the eval_<variant>_s<seed> folders")
+    parser.add_argument("--variants", nargs="+", required=True, help="variants in the table's order")
+    parser.add_argument("--labels", nargs="+", default=None, help="a label per variant (default: the variant)")
+    parser.add_argument("--figure", type=Path, default=None, help="write the mean-against-worst-decile figure here")
+    args = parser.parse_args(argv)
+    labels = args.labels or args.variants
+    if len(labels) != len(args.variants):
+        parser.error(f"--labels needs one label per variant ({len(args.variants)}), got {len(labels)}")
+    rows = read_rows(args.folder)
+    if not rows:
+        parser.error(f"no eval_<variant>_s<seed>/results.json in {args.folder}")
+    print(table(rows, args.variants, labels))
+    if args.figure:
+        figure(rows, args.variants, labels, args.figure)
+        print(f"figure written to {args.figure}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

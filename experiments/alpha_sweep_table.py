@@ -1,15 +1,16 @@
 """
-The alpha sweep's table and figure: evaluation folders of ``python -m sb3_maddpg evaluate`` (one per variant and
-seed, named ``eval_<variant>_s<seed>``, as ``hazard_finetune.sh`` writes them) read back, one row per variant with the
+The alpha sweep's table and figure: the final evaluations of ``run_results.sh`` runs (``<variant>_s<seed>.jsonl``,
+the line of kind ``final``) or evaluation folders of ``python -m sb3_maddpg evaluate`` (``eval_<variant>_s<seed>``,
+as ``hazard_finetune.sh`` writes them) read back from one folder, one row per variant with the
 mean ± std over seeds of each seed's mean team return, worst-decile team return (the mean of its worst 10 % of
 episodes), hazard events per episode, c_T, f_T and eta_T; then one line per seed; and a figure of the mean against the
 worst decile, one point per variant and seed.
 
-    python experiments/alpha_sweep_table.py runs/storm --variants calm a1.0 a0.5 a0.25 a0.1 calmclassic classic \
+    python experiments/alpha_sweep_table.py runs/stsc --variants st_classic st_a1 st_a05 st_a025 st_a01 \
         --figure docs/figures/storm_alpha_sweep.png
 
-A variant is the part of the folder name between ``eval_`` and ``_s<seed>``; its label in the table is the variant
-name unless ``--labels`` gives one per variant.
+A variant is the file name up to ``_s<seed>.jsonl``, or the folder name between ``eval_`` and ``_s<seed>``; its
+label in the table is the variant name unless ``--labels`` gives one per variant.
 """
 
 from __future__ import annotations
@@ -36,12 +37,22 @@ COLUMNS = (
 
 def read_rows(folder: Path, method: str = "maddpg") -> dict[str, dict[int, dict[str, float]]]:
     """
-    The summary rows of the evaluations in ``folder``: variant -> seed -> row.
+    The summary rows of the evaluations in ``folder``: variant -> seed -> row (keys as in ``evaluate``'s summary).
 
-    :param folder: the folder holding ``eval_<variant>_s<seed>/results.json``
+    :param folder: the folder holding ``<variant>_s<seed>.jsonl`` or ``eval_<variant>_s<seed>/results.json``
     :param method: the evaluated method's row (``evaluate`` writes the baselines' rows beside it)
     """
     rows: dict[str, dict[int, dict[str, float]]] = {}
+    for log in sorted(folder.glob("*_s*.jsonl")):
+        match = re.fullmatch(r"(.+)_s(\d+)\.jsonl", log.name)
+        finals = [line for line in map(json.loads, log.read_text().splitlines()) if line.get("kind") == "final"]
+        if match is None or not finals:
+            continue
+        # the final line holds the means under the metrics' own names, the worst decile under its summary name
+        final = finals[-1]
+        row = {f"{key}_mean": value for key, value in final.items() if isinstance(value, (int, float))}
+        row["return_worst_decile"] = final["return_worst_decile"]
+        rows.setdefault(match.group(1), {})[int(match.group(2))] = row
     for results in sorted(folder.glob("eval_*_s*/results.json")):
         match = re.fullmatch(r"eval_(.+)_s(\d+)", results.parent.name)
         if match is None:
@@ -68,7 +79,10 @@ def table(rows: dict[str, dict[int, dict[str, float]]], variants: list[str], lab
             lines.append(f"| {label} | (none) |" + " |" * (len(head) - 2))
             continue
         seeds = sorted(by_seed)
-        cells = [mean_std([by_seed[s][key] for s in seeds], digits) for key, _, digits in COLUMNS]
+        cells = [
+            mean_std([by_seed[s][key] for s in seeds], digits) if all(key in by_seed[s] for s in seeds) else ""
+            for key, _, digits in COLUMNS
+        ]
         per_seed = ", ".join(f"{by_seed[s]['return_mean']:.1f} / {by_seed[s]['return_worst_decile']:.1f}" for s in seeds)
         lines.append(f"| {label} | {', '.join(map(str, seeds))} | " + " | ".join(cells) + f" | {per_seed} |")
     return "\n".join(lines)
@@ -112,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--labels needs one label per variant ({len(args.variants)}), got {len(labels)}")
     rows = read_rows(args.folder)
     if not rows:
-        parser.error(f"no eval_<variant>_s<seed>/results.json in {args.folder}")
+        parser.error(f"no <variant>_s<seed>.jsonl or eval_<variant>_s<seed>/results.json in {args.folder}")
     print(table(rows, args.variants, labels))
     if args.figure:
         figure(rows, args.variants, labels, args.figure)

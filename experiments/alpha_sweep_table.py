@@ -88,8 +88,18 @@ def table(rows: dict[str, dict[int, dict[str, float]]], variants: list[str], lab
     return "\n".join(lines)
 
 
-def figure(rows: dict[str, dict[int, dict[str, float]]], variants: list[str], labels: list[str], path: Path) -> None:
-    """Mean team return against the worst-decile team return, one point per variant and seed."""
+def figure(
+    rows: dict[str, dict[int, dict[str, float]]],
+    variants: list[str],
+    labels: list[str],
+    path: Path,
+    references: list[dict[str, float]] | None = None,
+) -> None:
+    """
+    Mean team return against the worst-decile team return, one point per variant and seed.
+
+    :param references: summary rows drawn as labelled crosses (e.g. the hand-made policies of ``hazard_policies.py``)
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -104,7 +114,16 @@ def figure(rows: dict[str, dict[int, dict[str, float]]], variants: list[str], la
         xs = [row["return_mean"] for row in by_seed.values()]
         ys = [row["return_worst_decile"] for row in by_seed.values()]
         ax.scatter(xs, ys, marker=markers[index % len(markers)], s=48, label=label)
-    ax.set_xlabel("mean team return (100 episodes)")
+    for row in references or []:
+        ax.scatter([row["return_mean"]], [row["return_worst_decile"]], marker="x", s=64, color="black")
+        ax.annotate(
+            row["method"],
+            (row["return_mean"], row["return_worst_decile"]),
+            fontsize=8,
+            xytext=(4, 4),
+            textcoords="offset points",
+        )
+    ax.set_xlabel("mean team return")
     ax.set_ylabel("worst-decile team return")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
@@ -120,6 +139,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--variants", nargs="+", required=True, help="variants in the table's order")
     parser.add_argument("--labels", nargs="+", default=None, help="a label per variant (default: the variant)")
     parser.add_argument("--figure", type=Path, default=None, help="write the mean-against-worst-decile figure here")
+    parser.add_argument(
+        "--policies", type=Path, default=None, help="a results folder of hazard_policies.py: its policies as crosses"
+    )
     args = parser.parse_args(argv)
     labels = args.labels or args.variants
     if len(labels) != len(args.variants):
@@ -129,7 +151,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"no <variant>_s<seed>.jsonl or eval_<variant>_s<seed>/results.json in {args.folder}")
     print(table(rows, args.variants, labels))
     if args.figure:
-        figure(rows, args.variants, labels, args.figure)
+        references = json.loads((args.policies / "results.json").read_text())["summary"] if args.policies else None
+        figure(rows, args.variants, labels, args.figure, references)
         print(f"figure written to {args.figure}")
     return 0
 

@@ -106,10 +106,10 @@ class UAVCoverageCore:
         energy spent in the reward and in the energy metric
     :param link_failure_prob: p_f, hazard: the probability that a radio link in range fails at a step, each link on its
         own (0, the default, is no failures); a UAV whose links all fail is disconnected (charged ``comm_penalty``)
-    :param crash_ground_steps: k, hazard: a UAV that a gust crashes is grounded for the k steps after the crash
-        (0, the default, is never): it stays where it stopped and does not fly, cover, link or spend energy, its
-        observations and teammates' show it as absent, and then it takes off again from there. A crash's loss is
-        then spread over k steps of lost coverage instead of one step's energy (``crash_energy``)
+    :param crash_ground_steps: k, hazard: a UAV that a gust crashes (or the storm strikes) is grounded for the k steps
+        after the crash (0, the default, is never): it stays where it stopped and does not fly, cover, link or spend
+        energy, its observations and teammates' show it as absent, and then it takes off again from there. A crash's
+        loss is then spread over k steps of lost coverage instead of one step's energy (``crash_energy``)
     :param grounded_penalty: p_d, charged to a grounded UAV at each of its grounded steps (its reward is then
         -``reward_scale`` p_d where a depleted UAV's is 0); needs ``crash_ground_steps`` > 0
     :param storm_zone: hazard: a rectangle (x0, y0, x1, y1) of the area where a storm can strike a UAV down (None, the

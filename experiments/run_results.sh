@@ -120,6 +120,12 @@ for config in classic a1 a05 a025 a01; do
   ENV[st_$config]=uav_coverage_storm_cpu_v1; ENV_KWARGS[st_$config]="${ENV_KWARGS[hz_$config]}"; STEPS[st_$config]=28000
   EPISODES[st_$config]=100; ALGO[st_$config]="${ALGO[hz_$config]}"; POLICY[st_$config]="${POLICY[hz_$config]}"
 done
+# The storm task with the grounded UAV's countdown in its own observation (show_grounded: a grounded UAV's return is
+# then a function of what its critic sees; without it the 20 grounded steps look alike)
+for config in a1 a05; do
+  ENV[st_${config}_vis]=uav_coverage_storm_cpu_v1; ENV_KWARGS[st_${config}_vis]="${ENV_KWARGS[st_$config]}, \"show_grounded\": true"
+  STEPS[st_${config}_vis]=28000; EPISODES[st_${config}_vis]=100; ALGO[st_${config}_vis]="${ALGO[st_$config]}"; POLICY[st_${config}_vis]="${POLICY[st_$config]}"
+done
 # The same five with the critics' mean fitted by the squared TD error (mean_loss "squared"): a crash's reward of about
 # -100 counts in full, where the Huber loss (kappa 1) weighs it as about -1
 for config in hz_classic hz_a1 hz_a05 hz_a025 hz_a01; do

@@ -439,3 +439,33 @@ def test_avoid_storm_keeps_the_spots_out_of_the_zone():
     assert in_zone(greedy_placement(grid, 6, 16, 3.0, 6.0), ZONE).any()  # the greedy spots without it are inside
     with pytest.raises(ValueError, match="avoid_zone=.* leaves no cell centre"):
         greedy_placement(grid, 6, 16, 3.0, avoid_zone=(0, 0, 16, 16))
+
+
+def test_show_grounded_marks_a_grounded_uav_with_its_steps_left():
+    # UAV 0 at (8.5, 8.5), the centre of a cell (its exact mark fills one pixel at 1 pixel per cell), is struck at
+    # step 1 with k = 2: its own channel 1 holds 2, then 1, then its energy value again (round(255 E / E_max)); with
+    # show_grounded off it has no mark while grounded. UAV 1 never sees it (no links while grounded).
+    draws = [[0.0, 0.9], [0.9, 0.9], [0.9, 0.9]]
+    kwargs = dict(storm_zone=ZONE, storm_prob=0.5, crash_ground_steps=2, grounded_penalty=0.1)
+    shown = core_with([[8.5, 8.5], [2.5, 8.5]], draws, show_grounded=True, **kwargs)
+    hidden = core_with([[8.5, 8.5], [2.5, 8.5]], [list(d) for d in draws], **kwargs)
+    marks = []
+    for _ in range(3):
+        shown.step(np.array([HOVER, HOVER]))
+        hidden.step(np.array([HOVER, HOVER]))
+        obs, obs_hidden = shown.observations(), hidden.observations()
+        marks.append((int(obs[0, 1].sum()), int(obs_hidden[0, 1].sum()), int(obs[1, 3].sum())))
+        # the mark sits where the UAV landed: cell (8, 8) is image row 15 - 8 = 7 (y grows upwards), column 8
+        assert obs[0, 1, 7, 8] == obs[0, 1].sum()
+    energy_value = round(255 * shown.energy[0] / shown.max_energy)
+    assert marks == [(2, 0, 0), (1, 0, 0), (energy_value, energy_value, energy_value)]
+    # the state shows it too
+    shown_state = core_with([[8.5, 8.5], [2.5, 8.5]], [[0.0, 0.9]], show_grounded=True, **kwargs)
+    shown_state.step(np.array([HOVER, HOVER]))
+    assert shown_state.state()[1, 7, 8] == 2
+
+
+@pytest.mark.parametrize("value", [1, "yes", None])
+def test_show_grounded_must_be_a_bool(value):
+    with pytest.raises(TypeError, match="show_grounded must be True or False"):
+        UAVCoverageCore(obs_size=16, show_grounded=value)

@@ -112,6 +112,10 @@ class UAVCoverageCore:
         loss is then spread over k steps of lost coverage instead of one step's energy (``crash_energy``)
     :param grounded_penalty: p_d, charged to a grounded UAV at each of its grounded steps (its reward is then
         -``reward_scale`` p_d where a depleted UAV's is 0); needs ``crash_ground_steps`` > 0
+    :param show_grounded: if True, a grounded UAV's own observation (and the state) shows its mark with the number of
+        grounded steps it has left (1 to k) as its channel-1 value, instead of no mark: where it sits and when it
+        flies again are then observable, so its return while grounded is a function of its observation (it stays
+        absent from its teammates' teammate channel: it has no links)
     :param storm_zone: hazard: a rectangle (x0, y0, x1, y1) of the area where a storm can strike a UAV down (None, the
         default, is no zone); the same in every episode, like terrain, and not drawn in the observations: a policy
         learns where it is from its own position
@@ -157,6 +161,7 @@ class UAVCoverageCore:
         link_failure_prob: float = 0.0,
         crash_ground_steps: int = 0,
         grounded_penalty: float = 0.0,
+        show_grounded: bool = False,
         storm_zone: tuple[float, float, float, float] | list[float] | None = None,
         storm_prob: float = 0.0,
     ) -> None:
@@ -209,6 +214,9 @@ class UAVCoverageCore:
                 f"grounded_penalty={grounded_penalty!r} needs crash_ground_steps >= 1 (without grounding no UAV is "
                 "ever grounded); set crash_ground_steps or leave grounded_penalty at 0"
             )
+        if not isinstance(show_grounded, (bool, np.bool_)):
+            raise TypeError(f"show_grounded must be True or False, got {show_grounded!r}")
+        self.show_grounded = bool(show_grounded)
         self.storm_zone = check_zone("storm_zone", storm_zone, self.map_size)
         self.storm_prob = check_real("storm_prob", storm_prob, low_inclusive=True, high=1.0, high_inclusive=True)
         if self.storm_prob > 0.0 and self.storm_zone is None:
@@ -604,8 +612,15 @@ class UAVCoverageCore:
         return self._images.state(self.positions, self._uav_values())
 
     def _uav_values(self) -> np.ndarray:
-        """Channel-1 value of each UAV: round(255 E_i / E_max), at least 1 while active, 0 once depleted."""
-        return uav_values(self.energy, self.max_energy, self.active)
+        """
+        Channel-1 value of each UAV: round(255 E_i / E_max), at least 1 while active, 0 once depleted or while
+        grounded; with ``show_grounded``, a grounded UAV's grounded steps left (1 to k, at most 255).
+        """
+        values = uav_values(self.energy, self.max_energy, self.active)
+        if self.show_grounded:
+            grounded = (self.grounded_steps_left > 0) & (self.energy > self.depletion_level)
+            values[grounded] = np.minimum(self.grounded_steps_left[grounded], 255)
+        return values
 
     # -----------------------------------------------------------------------------------------------------------------
     # Helpers for the wrapper, rendering and evaluation

@@ -67,8 +67,10 @@ def critic_tails(model: MADDPG, n_episodes: int, seed: int = EVAL_SEED, alpha: f
             gradients = []
             for objective in (lambda q: q.mean(dim=-1), lambda q: cvar(q, alpha)):
                 own = joint.clone().requires_grad_(True)
-                objective(policy.critic.quantiles_with_own_actions(features, joint, own)).sum().backward()
-                gradients.append(own.grad[0].numpy())
+                # autograd.grad, not backward: only the actions' gradient, none accumulated in the critic's weights
+                value = objective(policy.critic.quantiles_with_own_actions(features, joint, own)).sum()
+                (gradient,) = th.autograd.grad(value, own)
+                gradients.append(gradient[0].numpy())
             exits = exit_directions(core.positions, core.storm_zone)
             observations, *_ = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
             active = core.active.copy()

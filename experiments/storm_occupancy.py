@@ -17,6 +17,7 @@ import numpy as np
 import torch as th
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.evaluation.baselines import ModelController
 from sb3_maddpg.zoo.registry import make_multiagent_env
 from sb3_maddpg_envs.uav_coverage.hazards import in_zone
 
@@ -34,19 +35,16 @@ def occupancy(model: MADDPG, n_episodes: int, seed: int = EVAL_SEED) -> dict[str
     :return: ``inside`` (share of active UAV-steps inside the zone), ``inside_per_uav`` (per UAV), ``strikes``,
         ``wall_hits`` and ``return`` (team, per episode)
     """
-    inside_steps, active_steps, strikes, wall_hits, returns = None, None, [], [], []
+    env = make_multiagent_env(ENV_ID)
+    core, controller = env.core, ModelController(model)
+    inside_steps, active_steps = np.zeros(core.n_uavs), np.zeros(core.n_uavs)
+    strikes, wall_hits, returns = [], [], []
     for episode in range(n_episodes):
-        env = make_multiagent_env(ENV_ID)
         observations, _ = env.reset(seed=seed + episode)
-        core = env.core
-        if inside_steps is None:
-            inside_steps, active_steps = np.zeros(core.n_uavs), np.zeros(core.n_uavs)
         total = 0.0
         infos: dict = {}
         while env.agents:
-            stacked = np.stack([observations[agent] for agent in env.possible_agents])
-            actions, _ = model.predict(stacked, deterministic=True)
-            observations, rewards, _, _, infos = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
+            observations, rewards, _, _, infos = env.step(controller.act(observations, env))
             total += sum(rewards.values())
             # where each UAV that flew this step ended it (a grounded UAV is not active and not counted)
             inside_steps += core.active & in_zone(core.positions, core.storm_zone)

@@ -439,6 +439,8 @@ def test_avoid_storm_keeps_the_spots_out_of_the_zone():
     assert in_zone(greedy_placement(grid, 6, 16, 3.0, 6.0), ZONE).any()  # the greedy spots without it are inside
     with pytest.raises(ValueError, match="avoid_zone=.* leaves no cell centre"):
         greedy_placement(grid, 6, 16, 3.0, avoid_zone=(0, 0, 16, 16))
+    with pytest.raises(ValueError, match="avoid_zone must be None or four numbers"):
+        greedy_placement(grid, 6, 16, 3.0, avoid_zone=(0, 0, 17))
 
 
 def test_show_grounded_marks_a_grounded_uav_with_its_steps_left():

@@ -106,8 +106,10 @@ def greedy_placement(
     candidates = np.stack([xx.ravel(), yy.ravel()], axis=1)  # (C, 2)
     if avoid_zone is not None:
         from sb3_maddpg_envs.uav_coverage.hazards import in_zone
+        from sb3_maddpg_envs.uav_coverage.validation import check_zone
 
-        candidates = candidates[~in_zone(candidates, avoid_zone)]
+        # the env's own check of a storm zone: a bad rectangle gets its clear error here, not an unpacking one
+        candidates = candidates[~in_zone(candidates, check_zone("avoid_zone", avoid_zone, map_size))]
         if len(candidates) == 0:
             raise ValueError(f"avoid_zone={avoid_zone!r} leaves no cell centre of a {map_size} x {map_size} map as a spot")
     diff = candidates[:, None, :] - np.asarray(pois, dtype=np.float64)[None, :, :]

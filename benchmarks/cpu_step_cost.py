@@ -19,6 +19,7 @@ one core with one torch thread, and counts that process's CPU time (``time.proce
     python benchmarks/cpu_step_cost.py --reference 6888883 --rounds 3
     python benchmarks/cpu_step_cost.py --task uav --reference 901880e --rounds 3 --timesteps 2000 --warmup 1000
     python benchmarks/cpu_step_cost.py --task uav --reference 901880e --override 'b32={"batch_size": 32}'
+    python benchmarks/cpu_step_cost.py --reference 6888883 --override 'compiled={"compile_quantile_loss": true}'
     python benchmarks/cpu_step_cost.py --timesteps 100000        # the current code only, long run
 """
 
@@ -101,8 +102,11 @@ def measure_uav(timesteps: int, warmup: int, override: dict | None = None) -> di
     return {"cpu_ms_per_timestep": cpu / timesteps * 1e3, "timesteps_per_cpu_s": timesteps / cpu, "n_envs": n_envs}
 
 
-def measure(n_quantiles: int, timesteps: int, warmup: int) -> dict[str, float]:
-    """simple_spread: train past ``learning_starts``, then time ``timesteps`` more timesteps; CPU ms per VecEnv step."""
+def measure(n_quantiles: int, timesteps: int, warmup: int, override: dict | None = None) -> dict[str, float]:
+    """
+    simple_spread: train past ``learning_starts``, then time ``timesteps`` more timesteps; CPU ms per VecEnv step.
+    ``override``: MADDPG arguments over the benchmark's (e.g. ``{"compile_quantile_loss": true}``).
+    """
     import torch as th
 
     th.set_num_threads(1)
@@ -119,6 +123,7 @@ def measure(n_quantiles: int, timesteps: int, warmup: int) -> dict[str, float]:
         gradient_steps=1,
         policy_kwargs=dict(n_quantiles=n_quantiles, net_arch=[64, 64]),
         seed=0,
+        **(override or {}),
     )
     model.learn(warmup)
     wall, cpu = time.perf_counter(), time.process_time()
@@ -175,7 +180,8 @@ def main() -> None:
         "--override",
         action="append",
         default=[],
-        help="uav: NAME=JSON, settings over the current code's entry, measured as one more version (repeatable)",
+        help="NAME=JSON, settings over the current code's (uav: over its YAML entry; simple_spread: MADDPG arguments), "
+        "measured as one more version (repeatable)",
     )
     parser.add_argument("--child", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -186,7 +192,8 @@ def main() -> None:
                 json.dumps(measure_uav(args.timesteps, args.warmup, json.loads(args.override[0]) if args.override else None))
             )
         else:
-            print(json.dumps(measure(args.child, args.timesteps, args.warmup)))
+            override = json.loads(args.override[0]) if args.override else None
+            print(json.dumps(measure(args.child, args.timesteps, args.warmup, override)))
         return
     if args.task == "uav":
         compare_uav(args)
@@ -196,14 +203,17 @@ def main() -> None:
         args, f"simple_spread_v3, {N_COPIES} copies, batch 256, one update per VecEnv step, {args.timesteps} timed timesteps"
     )
     with tempfile.TemporaryDirectory() as folder:
-        versions = {"current": REPO}
+        versions = {"current": (REPO, "{}")}
+        for item in args.override:
+            name, _, settings = item.partition("=")
+            versions[f"current, {name}"] = (REPO, settings)
         if args.reference:
-            versions = {f"reference {args.reference}": export_revision(args.reference, folder), **versions}
+            versions = {f"reference {args.reference}": (export_revision(args.reference, folder), "{}"), **versions}
         results: dict[tuple[str, int], list[dict[str, float]]] = {}
         for _ in range(args.rounds):
             for n_quantiles in (25, 1):
-                for name, code_dir in versions.items():
-                    result = run_child(code_dir, n_quantiles, args, core)
+                for name, (code_dir, override) in versions.items():
+                    result = run_child(code_dir, n_quantiles, args, core, override)
                     results.setdefault((name, n_quantiles), []).append(result)
                     print(
                         f"  {name:>20s} n_quantiles={n_quantiles:2d}: {result['cpu_ms_per_step']:.2f} CPU ms/step", flush=True
@@ -225,9 +235,10 @@ def main() -> None:
         print(f"{name}: n_quantiles=25 step / n_quantiles=1 step = {median(name, 25) / median(name, 1):.2f}")
     if args.reference:
         reference = next(iter(versions))
-        for n_quantiles in (25, 1):
-            speedup = median(reference, n_quantiles) / median("current", n_quantiles)
-            print(f"n_quantiles={n_quantiles}: timesteps per CPU second, current / reference = {speedup:.2f}")
+        for name in list(versions)[1:]:
+            for n_quantiles in (25, 1):
+                speedup = median(reference, n_quantiles) / median(name, n_quantiles)
+                print(f"n_quantiles={n_quantiles}: timesteps per CPU second, {name} / reference = {speedup:.2f}")
 
 
 def compare_uav(args: argparse.Namespace) -> None:

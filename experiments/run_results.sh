@@ -87,6 +87,10 @@ ALGO[fast_b32]="${ALGO[fast_shared_small_b32]}"; POLICY[fast_b32]="${POLICY[exac
 # config's batch 64 for 28 000 (an update at batch 32 costs 1 / 1.57 of one at 64: docs/benchmarks.md)
 ENV[fast_b32_40k]=uav_coverage_cpu_v1; ENV_KWARGS[fast_b32_40k]="${ENV_KWARGS[fast_b32]}"; STEPS[fast_b32_40k]=40000
 ALGO[fast_b32_40k]="${ALGO[fast_b32]}"; POLICY[fast_b32_40k]="${POLICY[fast_b32]}"
+# The quick start's config (fast_b32_40k) with the encoder sized for 16 x 16 inputs (issue: training speed): does the
+# longer budget give back the fairness that channels (8, 16, 32) lost at 28 000 timesteps?
+ENV[fast_small_b32_40k]=uav_coverage_cpu_v1; ENV_KWARGS[fast_small_b32_40k]="${ENV_KWARGS[fast_b32]}"; STEPS[fast_small_b32_40k]=40000
+ALGO[fast_small_b32_40k]="${ALGO[fast_b32]}"; POLICY[fast_small_b32_40k]="${POLICY[fast_small_b32]}"
 # The config with a 25-quantile critic at alpha 1: does the quantile critic learn as fast as the scalar one?
 ENV[mates_q25]=uav_coverage_cpu_v1; ALGO[mates_q25]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[mates_q25]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
 POLICY[mates_q25]="{\"n_quantiles\": 25, $encoder}"; STEPS[mates_q25]=28000

@@ -267,6 +267,7 @@ def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
         )
     check_bool("cuda_graph", arguments["cuda_graph"])
     check_bool("bf16_autocast", arguments["bf16_autocast"])
+    check_bool("compile_quantile_loss", arguments["compile_quantile_loss"])
     check_int("policy_delay", arguments["policy_delay"], 1)
     check_int("critic_warmup_steps", arguments["critic_warmup_steps"], 0)
     if arguments["max_grad_norm"] is not None:

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # README command (1): install, then train MADDPG on the CPU variant of the UAV coverage task (uav_coverage_cpu_v1:
 # version 1 of the task with 16 x 16 observations, 300-step episodes) with RL Zoo, evaluate it against the two
-# baselines and draw the report's figures. About 20-25 minutes on one CPU core; -P shows a progress bar in timesteps
+# baselines and draw the report's figures. About 20 minutes on one CPU core; -P shows a progress bar in timesteps
 # with the time left.
 # Everything is written under runs/quickstart/ (override with OUT=...):
 #   logs/maddpg/uav_coverage_cpu_v1_1/   the model, checkpoints, monitor.csv, the run's config

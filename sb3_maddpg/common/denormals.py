@@ -4,9 +4,10 @@ Flushing denormal floats to zero while a model trains on CPU.
 Adam's moving averages of a weight whose gradient is always 0 (a ReLU unit that never fires, a critic input that a
 dead feature leaves at 0) shrink by beta1 = 0.9 at every step and reach the float32 denormal range (below 1.2e-38)
 after about 800 steps; BatchNorm's running statistics of such a channel do the same. x86 CPUs compute with denormal
-operands through a slow microcode path, about a hundred times slower than with normal numbers, so a few tens of
-thousands of them in the optimizer's state slow every update: on the UAV quick start's networks the fused Adam step of
-the critics took 2.5 ms on average against 1.2 ms for its median (docs/benchmarks.md, "Denormal floats").
+operands through a slow microcode path (a vectorised multiply: 16 times slower on the project's Intel Xeon), so a
+few tens of thousands of them in the optimizer's state slow every update: on the UAV quick start's networks the
+fused Adam step of the critics took 2.5 ms on average against 1.2 ms for its median (docs/benchmarks.md, "Denormal
+floats").
 
 PyTorch can set the CPU's flush-to-zero and denormals-are-zero modes (``torch.set_flush_denormal``), as TensorFlow
 does by default, but has no way to read them back; ``flush_denormal_enabled`` tells by computing with a denormal

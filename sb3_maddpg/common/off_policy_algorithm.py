@@ -142,8 +142,8 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
     :param device: device (cpu, cuda, ...) on which the code should run; "auto" uses the GPU if possible
     :param flush_denormals: while ``learn`` runs, the CPU flushes denormal floats (below 1.2e-38) to zero
         (``torch.set_flush_denormal``; the mode it found is restored afterwards). Adam's averages of weights that get no
-        gradient decay into that range, where x86 CPUs compute about a hundred times slower (the UAV quick start:
-        1.2x faster with it, the networks' weights unchanged; ``sb3_maddpg.common.denormals``). True by default
+        gradient decay into that range, where x86 CPUs compute many times slower (the UAV quick start: 1.2x to 1.35x
+        faster with it, the networks' weights unchanged; ``sb3_maddpg.common.denormals``). True by default
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {}

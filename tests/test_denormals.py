@@ -44,13 +44,13 @@ def make_model(algorithm: type[MADDPG] = MADDPG, **kwargs) -> MADDPG:
 
 
 def test_probe_reads_the_mode_by_hand():
-    # 1e-38 * 0.1 = 1e-39 lies below float32's smallest normal number (about 1.18e-38): kept as a denormal number
-    # normally, 0 once the CPU flushes them
+    # 2e-38 is a normal float32 (the smallest is about 1.18e-38); 2e-38 * 0.05 = 1e-39 is not: kept as a denormal
+    # number normally, 0 once the CPU flushes them
     assert not flush_denormal_enabled()
-    assert th.tensor([1e-38]).mul_(0.1).item() == pytest.approx(1e-39, rel=1e-3)
+    assert th.tensor([2e-38]).mul_(0.05).item() == pytest.approx(1e-39, rel=1e-3)
     th.set_flush_denormal(True)
     assert flush_denormal_enabled()
-    assert th.tensor([1e-38]).mul_(0.1).item() == 0.0
+    assert th.tensor([2e-38]).mul_(0.05).item() == 0.0
 
 
 def test_context_turns_the_mode_on_and_restores_it():

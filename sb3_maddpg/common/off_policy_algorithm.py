@@ -143,7 +143,9 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
     :param flush_denormals: while ``learn`` runs, the CPU flushes denormal floats (below 1.2e-38) to zero
         (``torch.set_flush_denormal``; the mode it found is restored afterwards). Adam's averages of weights that get no
         gradient decay into that range, where x86 CPUs compute many times slower (the UAV quick start: 1.2x to 1.35x
-        faster with it, the networks' weights unchanged; ``sb3_maddpg.common.denormals``). True by default
+        faster with it, the networks' weights unchanged; ``sb3_maddpg.common.denormals``). The mode belongs to the
+        thread that calls ``learn``: with ``torch.set_num_threads(n > 1)`` the work of PyTorch's other intra-op
+        threads is not flushed. True by default
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {}

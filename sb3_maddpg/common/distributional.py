@@ -150,7 +150,7 @@ def _loss_and_gradient(current: th.Tensor, target: th.Tensor, tails: th.Tensor, 
     return loss, grad
 
 
-# The compiled loss, made at its first use; False once compiling it has failed (then the eager loss runs)
+# The compiled loss, made at its first use; None once compiling it has failed (then the eager loss runs)
 _COMPILED: dict[str, Any] = {}
 
 
@@ -209,9 +209,9 @@ def quantile_huber_loss(
     :param taus: quantile fractions of ``current_quantiles``, shape (n,); midpoints when None
     :param kappa: Huber threshold (> 0)
     :param compiled: on CPU, compute the loss and its gradient with a kernel that ``torch.compile`` makes from the same
-        formula (one pass over the pairs instead of a dozen: at (256, 3, 25, 25) about 0.3 ms against 1.3 ms; the
-        first call per shape compiles, about 15 s). Equal to the eager loss up to float rounding; where compiling
-        fails, a warning, and the eager loss. Other devices always take the eager loss
+        formula (one pass over the pairs instead of a dozen: at (256, 3, 25, 25) 0.43 ms against 1.26 ms for the loss
+        and its gradient on one core; the first call per shape compiles, about 15 s). Equal to the eager loss up to
+        float rounding; where compiling fails, a warning, and the eager loss. Other devices always take the eager loss
     :return: loss per leading index, shape (...)
     """
     if current_quantiles.shape[:-1] != target_quantiles.shape[:-1]:

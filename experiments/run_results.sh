@@ -91,6 +91,10 @@ ALGO[fast_b32_40k]="${ALGO[fast_b32]}"; POLICY[fast_b32_40k]="${POLICY[fast_b32]
 # longer budget give back the fairness that channels (8, 16, 32) lost at 28 000 timesteps?
 ENV[fast_small_b32_40k]=uav_coverage_cpu_v1; ENV_KWARGS[fast_small_b32_40k]="${ENV_KWARGS[fast_b32]}"; STEPS[fast_small_b32_40k]=40000
 ALGO[fast_small_b32_40k]="${ALGO[fast_b32]}"; POLICY[fast_small_b32_40k]="${POLICY[fast_small_b32]}"
+# Between the two: channels (12, 24, 48), about half the report's arithmetic
+mid_encoder='"features_extractor_kwargs": {"padding": 1, "coord_channels": true, "batch_norm_eps": 0.001, "position_channel": 1, "channels": [12, 24, 48]}'
+ENV[fast_mid_b32_40k]=uav_coverage_cpu_v1; ENV_KWARGS[fast_mid_b32_40k]="${ENV_KWARGS[fast_b32]}"; STEPS[fast_mid_b32_40k]=40000
+ALGO[fast_mid_b32_40k]="${ALGO[fast_b32]}"; POLICY[fast_mid_b32_40k]="{\"n_quantiles\": 1, $mid_encoder}"
 # The config with a 25-quantile critic at alpha 1: does the quantile critic learn as fast as the scalar one?
 ENV[mates_q25]=uav_coverage_cpu_v1; ALGO[mates_q25]="${ALGO[exact_tpn005_g09]}"; ENV_KWARGS[mates_q25]="${ENV_KWARGS[exact_tpn005_g09_mates]}"
 POLICY[mates_q25]="{\"n_quantiles\": 25, $encoder}"; STEPS[mates_q25]=28000

@@ -158,6 +158,20 @@ def export_revision(revision: str, folder: str) -> str:
     return folder
 
 
+def versions_to_measure(args: argparse.Namespace, folder: str) -> dict[str, tuple[str, str]]:
+    """
+    Name -> (code folder, JSON settings) of every version to measure: the reference revision (exported to ``folder``)
+    first when given, then the current code, then the current code with each ``--override``.
+    """
+    versions = {"current": (REPO, "{}")}
+    for item in args.override:
+        name, _, settings = item.partition("=")
+        versions[f"current, {name}"] = (REPO, settings)
+    if args.reference:
+        versions = {f"reference {args.reference}": (export_revision(args.reference, folder), "{}"), **versions}
+    return versions
+
+
 def print_header(args: argparse.Namespace, task: str) -> int | None:
     """Print the date, machine, task and load; return the core to pin measurements to (None: no pinning)."""
     print(
@@ -187,12 +201,10 @@ def main() -> None:
     args = parser.parse_args()
     if args.child is not None:
         import_envs_from(os.getcwd())
+        override = json.loads(args.override[0]) if args.override else None
         if args.task == "uav":
-            print(
-                json.dumps(measure_uav(args.timesteps, args.warmup, json.loads(args.override[0]) if args.override else None))
-            )
+            print(json.dumps(measure_uav(args.timesteps, args.warmup, override)))
         else:
-            override = json.loads(args.override[0]) if args.override else None
             print(json.dumps(measure(args.child, args.timesteps, args.warmup, override)))
         return
     if args.task == "uav":
@@ -203,12 +215,7 @@ def main() -> None:
         args, f"simple_spread_v3, {N_COPIES} copies, batch 256, one update per VecEnv step, {args.timesteps} timed timesteps"
     )
     with tempfile.TemporaryDirectory() as folder:
-        versions = {"current": (REPO, "{}")}
-        for item in args.override:
-            name, _, settings = item.partition("=")
-            versions[f"current, {name}"] = (REPO, settings)
-        if args.reference:
-            versions = {f"reference {args.reference}": (export_revision(args.reference, folder), "{}"), **versions}
+        versions = versions_to_measure(args, folder)
         results: dict[tuple[str, int], list[dict[str, float]]] = {}
         for _ in range(args.rounds):
             for n_quantiles in (25, 1):
@@ -247,12 +254,7 @@ def compare_uav(args: argparse.Namespace) -> None:
         args, f"{UAV_ENV}, each version's zoo_configs/maddpg.yml entry, {args.timesteps} timed timesteps after {args.warmup}"
     )
     with tempfile.TemporaryDirectory() as folder:
-        versions = {"current": (REPO, "{}")}
-        for item in args.override:
-            name, _, settings = item.partition("=")
-            versions[f"current, {name}"] = (REPO, settings)
-        if args.reference:
-            versions = {f"reference {args.reference}": (export_revision(args.reference, folder), "{}"), **versions}
+        versions = versions_to_measure(args, folder)
         results: dict[str, list[dict[str, float]]] = {}
         for _ in range(args.rounds):
             for name, (code_dir, override) in versions.items():

@@ -1,5 +1,7 @@
 """The quantile Huber loss compiled by torch.compile: the same values and gradients as the formula, a clear fallback."""
 
+import warnings
+
 import pytest
 import torch as th
 from maddpg_test_envs import TargetReachEnv
@@ -57,8 +59,6 @@ def test_a_failed_compilation_warns_once_and_computes_the_eager_loss(monkeypatch
         loss = quantile_huber_loss(current, target, compiled=True)
     assert th.equal(loss, quantile_huber_loss(current, target))
     # Later calls take the eager loss without trying again
-    import warnings
-
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert th.equal(quantile_huber_loss(current, target, compiled=True), loss)

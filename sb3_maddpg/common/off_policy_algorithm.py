@@ -50,7 +50,7 @@ from sb3_maddpg.common.evaluation import evaluate_joint_episodes
 from sb3_maddpg.common.model_files import READ_ERRORS, read_maddpg_data, restricted_loads
 from sb3_maddpg.common.noise import DecayingGaussianNoise, RowBatchedActionNoise, set_noise_timestep
 from sb3_maddpg.common.random_state import capture_random_states, restore_random_states
-from sb3_maddpg.common.validation import check_bool, check_int, check_off_policy_arguments
+from sb3_maddpg.common.validation import check_int, check_off_policy_arguments
 from sb3_maddpg.common.vec_env import is_agent_dict, rows_from_agent_dict
 
 SelfMultiAgentOffPolicyAlgorithm = TypeVar("SelfMultiAgentOffPolicyAlgorithm", bound="MultiAgentOffPolicyAlgorithm")
@@ -176,7 +176,6 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         flush_denormals: bool = True,
     ) -> None:
         name = type(self).__name__
-        check_bool("flush_denormals", flush_denormals)
         check_off_policy_arguments(
             name,
             dict(
@@ -198,6 +197,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
                 verbose=verbose,
                 seed=seed,
                 device=device,
+                flush_denormals=flush_denormals,
             ),
         )
         super().__init__(

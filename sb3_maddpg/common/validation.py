@@ -199,6 +199,7 @@ def check_off_policy_arguments(algorithm: str, arguments: dict[str, Any]) -> Non
     _check_train_freq(arguments["train_freq"])
     if check_int("gradient_steps", arguments["gradient_steps"], -1) == 0:
         raise ValueError("gradient_steps must be an integer >= 1, or -1 (as many as timesteps collected), got 0 (no update)")
+    check_bool("flush_denormals", arguments["flush_denormals"])
     action_noise = arguments["action_noise"]
     if action_noise is not None and not isinstance(action_noise, ActionNoise):
         raise TypeError(f"action_noise must be an SB3 ActionNoise or None, got {action_noise!r}")

@@ -8,6 +8,9 @@
 # One training run is about an hour on one core (the YAML entry's comment): the full training sweep is 6 N x 3 seeds.
 # Usage: OUT=experiments/results/2026-12-04-tmc CORE=1 bash experiments/tmc_sweep.sh [baselines|train|table|all]
 # A quick check of the pipeline: NS=3 SEEDS=0 TIMESTEPS=200 EPISODES=1 OUT=/tmp/tmc bash experiments/tmc_sweep.sh train
+# PARAMS overrides entries of the YAML entry as RL Zoo's -params (e.g. the attention critic:
+# PARAMS="policy_kwargs:\"dict(n_quantiles=1, critic='attention', features_extractor_kwargs=...)\""); TAG prefixes the
+# runs' names, so that runs with other PARAMS can share $OUT.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/tmc}
@@ -20,6 +23,8 @@ EPISODES=${EPISODES:-20}
 EVAL_SEED=${EVAL_SEED:-10000}
 BASELINES=${BASELINES:-"random greedy_step greedy_static"}
 TIMESTEPS=${TIMESTEPS:-}  # empty: the YAML entry's n_timesteps; a small value checks the pipeline
+read -r -a PARAMS <<< "${PARAMS:-}"
+TAG=${TAG:+${TAG}_}
 ENV_ID=uav_coverage_tmc_v1
 what=${1:-all}
 case "$what" in baselines | train | table | all) ;; *) echo "usage: $0 [baselines|train|table|all]" >&2; exit 2 ;; esac
@@ -37,15 +42,17 @@ fi
 if [ "$what" = train ] || [ "$what" = all ]; then
     for n in $NS; do
         for seed in $SEEDS; do
-            logs="$OUT/logs/n${n}_s$seed"
+            run_name="${TAG}n${n}_s$seed"
+            logs="$OUT/logs/$run_name"
             start=$SECONDS
             run "$PY" -m sb3_maddpg train --algo maddpg --env "$ENV_ID" --env-kwargs "n_uavs:$n" --seed "$seed" \
-                ${TIMESTEPS:+-n "$TIMESTEPS"} -f "$logs" --eval-freq -1 >"$OUT/train_n${n}_s$seed.log" 2>&1
-            echo $((SECONDS - start)) >"$OUT/train_n${n}_s$seed.seconds"  # wall clock of the training run
+                ${TIMESTEPS:+-n "$TIMESTEPS"} -f "$logs" --eval-freq -1 ${PARAMS[@]+-params "${PARAMS[@]}"} \
+                >"$OUT/train_$run_name.log" 2>&1
+            echo $((SECONDS - start)) >"$OUT/train_$run_name.seconds"  # wall clock of the training run
             # the run's own n_uavs is read from its args.yml
             run "$PY" -m sb3_maddpg evaluate --model "$logs/maddpg/${ENV_ID}_1/$ENV_ID.zip" --baselines random \
                 --episodes "$EPISODES" --seed "$EVAL_SEED" --no-gif \
-                --out "$OUT/eval/n${n}_s$seed" >"$OUT/eval_n${n}_s$seed.log" 2>&1
+                --out "$OUT/eval/$run_name" >"$OUT/eval_$run_name.log" 2>&1
         done
     done
 fi

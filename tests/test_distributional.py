@@ -219,7 +219,7 @@ def test_mean_anchored_quantile_loss_is_the_plain_loss_with_one_quantile():
 def test_mean_head_quantiles_and_where_the_shape_gradient_goes():
     from gymnasium import spaces
 
-    from sb3_maddpg.maddpg.policies import MultiAgentQuantileCritic
+    from sb3_maddpg.maddpg.critics import MultiAgentQuantileCritic
 
     th.manual_seed(0)
     critic = MultiAgentQuantileCritic(

@@ -42,12 +42,15 @@ def episode_end_coverage(env_fn, env_kwargs: dict, act, n_episodes: int = 8) -> 
     return float(np.mean(coverage[:n_episodes]))
 
 
-def returns_against_random(algorithm, env_cls, seed: int, random_actions, **model_kwargs) -> tuple[float, float]:
+def returns_against_random(
+    algorithm, env_cls, seed: int, random_actions, critic: str = "joint", **model_kwargs
+) -> tuple[float, float]:
     """
     Train on ``env_cls`` (2 agents, 2 copies) for 2 000 timesteps, then the mean team returns of random actions and of
     the trained model on the same 20 evaluation episodes.
 
     :param random_actions: (generator, number of rows) -> the random actions of the rows
+    :param critic: the policy's critic design
     :return: the random and the trained team return
     """
     kwargs = dict(n_agents=2)
@@ -59,7 +62,7 @@ def returns_against_random(algorithm, env_cls, seed: int, random_actions, **mode
         batch_size=64,
         buffer_size=20_000,
         gamma=0.9,
-        policy_kwargs=dict(n_quantiles=10),
+        policy_kwargs=dict(n_quantiles=10, critic=critic),
         seed=seed,
         **model_kwargs,
     )
@@ -74,19 +77,33 @@ def returns_against_random(algorithm, env_cls, seed: int, random_actions, **mode
     return random_return, trained_return
 
 
-@pytest.mark.parametrize(("algorithm", "cvar_alpha", "seed"), [(MADDPG, 1.0, 0), (MADDPG, 0.25, 1), (MATD3, 1.0, 0)])
-def test_mlp_policy_beats_random_on_cooperative_target_reaching(algorithm, cvar_alpha, seed):
-    """Risk-neutral (alpha = 1) and risk-averse (alpha = 0.25) critics both learn the cooperative task; MATD3 too."""
+@pytest.mark.parametrize(
+    ("algorithm", "cvar_alpha", "seed", "critic"),
+    [
+        (MADDPG, 1.0, 0, "joint"),
+        (MADDPG, 0.25, 1, "joint"),
+        (MATD3, 1.0, 0, "joint"),
+        (MADDPG, 1.0, 0, "attention"),
+        (MADDPG, 0.25, 1, "attention"),
+        (MATD3, 1.0, 2, "attention"),
+    ],
+)
+def test_mlp_policy_beats_random_on_cooperative_target_reaching(algorithm, cvar_alpha, seed, critic):
+    """
+    Risk-neutral (alpha = 1) and risk-averse (alpha = 0.25) critics both learn the cooperative task; MATD3 too; the
+    joint critic and the attention critic alike.
+    """
     random_return, trained_return = returns_against_random(
         algorithm,
         TargetReachEnv,
         seed,
         lambda rng, rows: rng.uniform(-1, 1, (rows, 2)).astype(np.float32),
+        critic=critic,
         cvar_alpha=cvar_alpha,
         action_noise=DecayingGaussianNoise(np.zeros(2), sigma=0.5, final_sigma=0.1, decay=0.999),
     )
     name = algorithm.__name__
-    print(f"\n{name} CVaR_{cvar_alpha}: team return over 20 episodes: random {random_return:.2f}, {name} {trained_return:.2f}")
+    print(f"\n{name} {critic} CVaR_{cvar_alpha}: 20 episodes: random {random_return:.2f}, trained {trained_return:.2f}")
     # Returns are negative distances: the random policy ends about 9 below zero; a clear margin is half of that
     assert trained_return > random_return + 0.5 * abs(random_return)
 

@@ -15,18 +15,22 @@ from stable_baselines3.common.utils import FloatSchedule, get_parameters_by_name
 
 from sb3_maddpg.common.actions import straight_through_gumbel_softmax
 from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
+from sb3_maddpg.common.diagnostics import own_action_candidates, own_action_value_range
 from sb3_maddpg.common.distributional import cvar, mean_anchored_quantile_loss, quantile_huber_loss
 from sb3_maddpg.common.graphed_update import GraphedUpdate, set_learning_rate
 from sb3_maddpg.common.groups import agent_groups
 from sb3_maddpg.common.noise import current_noise_std
 from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
 from sb3_maddpg.common.validation import check_maddpg_arguments
-from sb3_maddpg.maddpg.policies import CnnPolicy, MADDPGPolicy, MlpPolicy, MultiAgentActor, MultiAgentQuantileCritic
+from sb3_maddpg.maddpg.critics import QuantileCriticBase
+from sb3_maddpg.maddpg.policies import CnnPolicy, MADDPGPolicy, MlpPolicy, MultiAgentActor
 
 SelfMADDPG = TypeVar("SelfMADDPG", bound="MADDPG")
 
 # |pre-tanh| above atanh(0.99): the output is within 1 % of a bound of the action space
 _SATURATED_PREACTIVATION = float(np.arctanh(0.99))
+# train/own_action_range is measured on the batch of every this many-th update (a few critic passes without gradient)
+OWN_ACTION_RANGE_INTERVAL = 200
 
 
 class GradientStepStats(NamedTuple):
@@ -172,8 +176,8 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
     policy: MADDPGPolicy
     actor: MultiAgentActor
     actor_target: MultiAgentActor
-    critic: MultiAgentQuantileCritic
-    critic_target: MultiAgentQuantileCritic
+    critic: QuantileCriticBase
+    critic_target: QuantileCriticBase
 
     def __init__(
         self,
@@ -525,6 +529,9 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             update_actor = update_targets and self._n_updates > self.critic_warmup_steps
             step = self._gradient_step if self._graphed_update is None else self._graphed_update.step
             steps.append(step(replay_data, update_actor, update_targets))
+            if self._n_updates % OWN_ACTION_RANGE_INTERVAL == 0:
+                self._record_per_agent("own_action_range", self.own_action_range(replay_data).cpu().numpy())
+                self.policy.set_training_mode(True)
 
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         if gradient_steps == 0:
@@ -538,15 +545,38 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
                 names.append(name)
                 columns.append(th.stack(values).float().mean(dim=0))
         stats_np = th.stack(columns).cpu().numpy()
-        assert self.agent_names is not None
         for row, key in enumerate(names):
-            for i, name in enumerate(self.agent_names):
-                self.logger.record(f"train/{key}_{name}", float(stats_np[row, i]))
-            if key in ("critic_loss", "actor_loss", "actor_saturation"):
-                self.logger.record(f"train/{key}", float(stats_np[row].mean()))
+            self._record_per_agent(key, stats_np[row], with_mean=key in ("critic_loss", "actor_loss", "actor_saturation"))
         noise_std = current_noise_std(self.action_noise)
         if noise_std is not None:
             self.logger.record("train/noise_std", noise_std)
+
+    def _record_per_agent(self, key: str, values: np.ndarray, with_mean: bool = True) -> None:
+        """Log ``train/<key>_<agent>`` for each agent, and with ``with_mean`` their mean as ``train/<key>``."""
+        assert self.agent_names is not None
+        for i, name in enumerate(self.agent_names):
+            self.logger.record(f"train/{key}_{name}", float(values[i]))
+        if with_mean:
+            self.logger.record(f"train/{key}", float(values.mean()))
+
+    def own_action_range(self, replay_data: MultiAgentReplayBufferSamples) -> th.Tensor:
+        """
+        How far each critic's value moves with its own agent's action on a batch: the mean over the batch of the range
+        of critic i's mean value over a fixed set of candidate actions of agent i, the teammates keeping the batch's
+        actions (``sb3_maddpg.common.diagnostics``). Logged as ``train/own_action_range_<agent>``. Evaluated with the
+        networks in eval mode (no BatchNorm statistics move) and without touching the random state, so training is
+        the same with or without it; the caller restores the training mode.
+
+        :param replay_data: a batch of joint transitions
+        :return: (N,)
+        """
+        self.policy.set_training_mode(False)
+        with th.no_grad():
+            present, _ = self._presence(replay_data)
+            features = self.critic.encode(replay_data.observations)
+            candidates = own_action_candidates(self.critic.action_dim, self.actor.discrete, self.device)
+            actions = self._present_actions(replay_data.actions, present)
+            return own_action_value_range(self.critic, features, actions, candidates, present)
 
     def _excluded_save_params(self) -> list[str]:
         return [

@@ -1,4 +1,4 @@
-"""Actors, centralised quantile critics and the MADDPG policy."""
+"""The decentralised actors and the MADDPG policy (its critics: ``sb3_maddpg.maddpg.critics``)."""
 
 from typing import Any
 
@@ -13,6 +13,7 @@ from sb3_maddpg.common.actions import action_width, check_action_space, gumbel_m
 from sb3_maddpg.common.agent_spaces import AgentSpaces
 from sb3_maddpg.common.torch_layers import BatchedMlp, MultiAgentFeatures, ReportCNN
 from sb3_maddpg.common.validation import check_policy_arguments
+from sb3_maddpg.maddpg.critics import CRITICS, QuantileCriticBase, check_attention_arguments
 
 # The logit of a padded Discrete action: exp(-1e4) is 0 in every float type, and it stays finite (no inf - inf)
 _MASKED_LOGIT = -1e4
@@ -152,208 +153,6 @@ class MultiAgentActor(nn.Module):
         return self.squash(self.preactivations(observations, critic_features))
 
 
-class MultiAgentQuantileCritic(nn.Module):
-    """
-    Centralised quantile critics: critic i maps every agent's observation and action to ``n_quantiles`` values
-    Z_i(o, a)_j, the return distribution's quantiles at the midpoints tau_j = (j + 0.5) / n.
-
-    Each agent's observation is encoded once by that agent's critic-side extractor, and every critic reads all N
-    encodings: the input of each critic is [f_1, ..., f_N, a_1, ..., a_N]. So the extractor passes per update grow
-    with N, not N^2. The N critic MLPs run as one batched network.
-
-    With ``n_critics > 1`` (MATD3's twin critics) each agent has ``n_critics`` quantile networks on the same
-    encodings, as SB3's ``ContinuousCritic`` puts its ``n_critics`` Q-networks on one features extractor; network
-    c of agent i is model ``c * N + i`` of the batched MLP. The methods that return one value per agent
-    (``forward``, ``quantiles_from_features``, ``quantiles_with_own_actions``) use the first network of each agent,
-    as SB3's ``q1_forward``; ``all_quantiles`` returns every network's.
-
-    :param observation_space: one agent's observation space
-    :param action_space: one agent's action space (a Discrete(n) one is read as one-hot vectors of width n)
-    :param n_agents: number of agents N
-    :param n_quantiles: number of quantiles per critic
-    :param net_arch: hidden layer sizes of each critic
-    :param activation_fn: activation function
-    :param features_extractor_class: features extractor class
-    :param features_extractor_kwargs: its keyword arguments
-    :param normalize_images: divide image observations by 255
-    :param n_critics: quantile networks per agent (1 for MADDPG, 2 for MATD3's twin critics)
-    :param observation_mask: (N, *obs_shape) booleans marking each agent's own observation entries, or None (see
-        ``MultiAgentActor``)
-    :param action_mask: (N, action width) booleans marking each agent's own action entries, or None: the critics read
-        0 in the others, whatever the batch or the target policy smoothing put there
-    :param mean_head: with ``n_quantiles > 1``, each network outputs its mean mu and n deviations d_j from one more
-        output row, and its quantiles are mu + d_j - mean(d): the mean is a value of its own, and the deviations (the
-        distribution's shape) can be trained without moving the layers that the mean is computed from
-        (``shape_gradient=False`` in ``all_quantiles_from_features``). MADDPG's ``mean_anchored_quantiles``
-    :param agent_groups: the group of each agent: the critics of a group's agents share their networks (network c
-        of each, with a first-layer bias of its own); None: every agent its own
-    """
-
-    def __init__(
-        self,
-        observation_space: spaces.Box,
-        action_space: spaces.Box | spaces.Discrete,
-        n_agents: int,
-        n_quantiles: int,
-        net_arch: list[int],
-        activation_fn: type[nn.Module],
-        features_extractor_class: type[BaseFeaturesExtractor],
-        features_extractor_kwargs: dict[str, Any],
-        normalize_images: bool,
-        n_critics: int = 1,
-        observation_mask: th.Tensor | None = None,
-        action_mask: th.Tensor | None = None,
-        mean_head: bool = False,
-        agent_groups: tuple[int, ...] | None = None,
-    ) -> None:
-        super().__init__()
-        self.n_agents = n_agents
-        self.n_quantiles = n_quantiles
-        self.n_critics = n_critics
-        self.mean_head = mean_head and n_quantiles > 1
-        self.features = MultiAgentFeatures(
-            observation_space,
-            n_agents,
-            features_extractor_class,
-            features_extractor_kwargs,
-            normalize_images,
-            observation_mask=observation_mask,
-        )
-        self.action_mask: th.Tensor | None
-        self.register_buffer("action_mask", action_mask, persistent=False)
-        self.action_dim = action_width(action_space)
-        input_dim = n_agents * (self.features.features_dim + self.action_dim)
-        n_outputs = n_quantiles + 1 if self.mean_head else n_quantiles
-        # With groups, network c of agent i uses the weights c * G + (group of i), G the number of groups
-        shared_by = None
-        if agent_groups is not None:
-            n_groups = max(agent_groups) + 1
-            shared_by = tuple(c * n_groups + group for c in range(n_critics) for group in agent_groups)
-        self.quantile_nets = BatchedMlp(
-            n_critics * n_agents, input_dim, n_outputs, net_arch, activation_fn, shared_by=shared_by
-        )
-        # The first network of each agent: models 0 .. N-1
-        self._first_critics = slice(0, n_agents)
-
-    def encode(self, observations: th.Tensor) -> th.Tensor:
-        """
-        :param observations: (B, N, *obs_shape)
-        :return: features (B, N, F), one encoding per agent, shared by all critics
-        """
-        return self.features(observations)
-
-    def quantiles_from_features(self, features: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        """
-        The first network of each agent's critic.
-
-        :param features: (B, N, F) from ``encode``
-        :param actions: joint actions seen by every critic, (B, N, A); or one joint action per critic,
-            (B, N_critics = N, N, A), where ``actions[:, i]`` is the joint action critic i scores
-        :return: quantiles (B, N, n_quantiles), ``[:, i]`` from critic i
-        """
-        batch_size, n_agents = features.shape[:2]
-        actions = self._own_actions(actions)
-        if actions.dim() == 3:
-            # Every critic reads the same input: one (B, N*F + N*A) tensor, broadcast to the critics without a copy
-            hidden = self._first_layer(self._joint_input(features, actions), self._first_critics)
-            return self._quantiles_from(hidden, start=1, models=self._first_critics).transpose(0, 1)
-        joint_features = features.flatten(1).unsqueeze(1).expand(batch_size, n_agents, -1)
-        # (B, N_critics, N*F + N*A)
-        critic_inputs = th.cat([joint_features, actions.flatten(2)], dim=2)
-        return self._quantiles_from(critic_inputs.transpose(0, 1), start=0, models=self._first_critics).transpose(0, 1)
-
-    def all_quantiles_from_features(self, features: th.Tensor, actions: th.Tensor, shape_gradient: bool = True) -> th.Tensor:
-        """
-        Every network of every agent's critic on the joint actions ``actions``.
-
-        :param features: (B, N, F) from ``encode``
-        :param actions: joint actions seen by every critic, (B, N, A)
-        :param shape_gradient: with a mean head, False keeps the gradient of the deviations out of every layer but the
-            output layer (and out of the encoders): only the mean trains the layers it is computed from
-        :return: quantiles (n_critics, B, N, n_quantiles), ``[c, :, i]`` from network c of critic i
-        """
-        batch_size, n_agents = features.shape[:2]
-        hidden = self._first_layer(self._joint_input(features, self._own_actions(actions)))
-        quantiles = self._quantiles_from(hidden, start=1, shape_gradient=shape_gradient)  # (n_critics * N, B, n_q)
-        return quantiles.view(self.n_critics, n_agents, batch_size, -1).transpose(1, 2)
-
-    def quantiles_with_own_actions(self, features: th.Tensor, actions: th.Tensor, own_actions: th.Tensor) -> th.Tensor:
-        """
-        The quantiles that the actor update needs: critic i (its first network) scores the joint action ``actions``
-        with agent i's own action replaced by ``own_actions[:, i]``.
-
-        Equal to ``quantiles_from_features`` on the N mixed joint actions, without building them: critic i's input
-        differs from the shared one only in agent i's action block, and its first layer is linear
-        (``BatchedLinear.forward_with_block_changes``).
-
-        :param features: (B, N, F) from ``encode``
-        :param actions: the joint actions of the batch, (B, N, A)
-        :param own_actions: the actions that replace each agent's own, (B, N, A)
-        :return: quantiles (B, N, n_quantiles), ``[:, i]`` from critic i
-        """
-        n_agents = actions.shape[1]
-        actions, own_actions = self._own_actions(actions), self._own_actions(own_actions)
-        change = (own_actions - actions).transpose(0, 1)  # (N, B, A)
-        first_action_row = n_agents * features.shape[-1]  # the joint input is [f_1, ..., f_N, a_1, ..., a_N]
-        hidden = self.quantile_nets.first_layer.forward_with_block_changes(
-            self._joint_input(features, actions), change, start=first_action_row, models=self._first_critics
-        )
-        return self._quantiles_from(hidden, start=1, models=self._first_critics).transpose(0, 1)
-
-    def _quantiles_from(
-        self, hidden: th.Tensor, start: int, models: slice | None = None, shape_gradient: bool = True
-    ) -> th.Tensor:
-        """
-        The quantile networks from layer ``start`` on, model-major: (M, B, width) -> (M, B, n_quantiles).
-
-        With a mean head, output 0 is the mean mu and outputs 1..n the deviations d_j: the quantiles are
-        mu + d_j - mean(d), whose mean is mu.
-        """
-        if not self.mean_head:
-            return self.quantile_nets.model_major_from(hidden, start=start, models=models)
-        output_layer = len(self.quantile_nets.net) - 1
-        last_hidden = self.quantile_nets.model_major_from(hidden, start=start, models=models, stop=output_layer)
-        outputs = self.quantile_nets.model_major_from(last_hidden, start=output_layer, models=models)
-        if not shape_gradient:
-            shape_outputs = self.quantile_nets.model_major_from(last_hidden.detach(), start=output_layer, models=models)
-            outputs = th.cat([outputs[..., :1], shape_outputs[..., 1:]], dim=-1)
-        deviations = outputs[..., 1:]
-        return outputs[..., :1] + deviations - deviations.mean(dim=-1, keepdim=True)
-
-    def _own_actions(self, actions: th.Tensor) -> th.Tensor:
-        """Joint actions (B, N, A) or (B, N_critics, N, A) with every padded entry set to 0."""
-        if self.action_mask is None:
-            return actions
-        return actions.masked_fill(~self.action_mask, 0.0)
-
-    @staticmethod
-    def _joint_input(features: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        """(B, N*F + N*A): every agent's features, then every agent's action."""
-        return th.cat([features.flatten(1), actions.flatten(1)], dim=1)
-
-    def _first_layer(self, joint_input: th.Tensor, models: slice | None = None) -> th.Tensor:
-        """The critics' first linear layer on one shared input (B, D): (M, B, width), model-major."""
-        first = self.quantile_nets.first_layer
-        n_models = first.n_models if models is None else len(range(first.n_models)[models])
-        return first.forward_model_major(joint_input.unsqueeze(0).expand(n_models, -1, -1), models)
-
-    def forward(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        """
-        :param observations: (B, N, *obs_shape)
-        :param actions: (B, N, A) in [-1, 1]
-        :return: quantiles (B, N, n_quantiles) of each agent's first critic network
-        """
-        return self.quantiles_from_features(self.encode(observations), actions)
-
-    def all_quantiles(self, observations: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        """
-        :param observations: (B, N, *obs_shape)
-        :param actions: (B, N, A) in [-1, 1]
-        :return: quantiles (n_critics, B, N, n_quantiles) of every critic network
-        """
-        return self.all_quantiles_from_features(self.encode(observations), actions)
-
-
 class MADDPGPolicy(BasePolicy):
     """
     Policy of MADDPG: decentralised actors, centralised quantile critics and their target networks.
@@ -390,12 +189,17 @@ class MADDPGPolicy(BasePolicy):
     :param agent_spaces: each agent's own spaces where they differ (``observation_space`` and ``action_space`` are
         then the padded ones, see ``sb3_maddpg.common.agent_spaces``); the algorithm passes the VecEnv's. None where
         all agents have ``observation_space`` and ``action_space``
+    :param critic: the critics' design (``sb3_maddpg.maddpg.critics``): ``"joint"`` (classic MADDPG: each critic reads
+        every agent's encoding and action in one concatenation) or ``"attention"`` (each critic reads its own agent on
+        a path of its own and its teammates through attention; a size that does not grow with the team's)
+    :param critic_kwargs: keyword arguments of the critic's design (``"attention"``: ``embed_dim``, 64, and
+        ``n_heads``, 4); the joint critic takes none
     """
 
     actor: MultiAgentActor
     actor_target: MultiAgentActor
-    critic: MultiAgentQuantileCritic
-    critic_target: MultiAgentQuantileCritic
+    critic: QuantileCriticBase
+    critic_target: QuantileCriticBase
 
     def __init__(
         self,
@@ -417,6 +221,8 @@ class MADDPGPolicy(BasePolicy):
         mean_anchored_quantiles: bool = False,
         agent_groups: tuple[int, ...] | None = None,
         agent_spaces: AgentSpaces | None = None,
+        critic: str = "joint",
+        critic_kwargs: dict[str, Any] | None = None,
     ) -> None:
         if not isinstance(observation_space, spaces.Box):
             raise TypeError(f"MADDPGPolicy accepts a Box observation space (vector or image), got {observation_space}")
@@ -435,6 +241,7 @@ class MADDPGPolicy(BasePolicy):
             optimizer_class,
             optimizer_kwargs,
         )
+        self.critic_class, self.critic_design_kwargs = _check_critic(critic, critic_kwargs)
         n_quantiles, n_critics, n_agents = int(n_quantiles), int(n_critics), int(n_agents)
         super().__init__(
             observation_space,
@@ -459,6 +266,7 @@ class MADDPGPolicy(BasePolicy):
         self.n_critics = n_critics
         self.agent_spaces = agent_spaces
         self.mean_anchored_quantiles = mean_anchored_quantiles
+        self.critic_name = critic
         self.agent_groups = _check_agent_groups(agent_groups, n_agents, share_actor)
         observation_mask, action_mask = _padding_masks(agent_spaces, observation_space, action_space, n_agents)
         common = dict(
@@ -479,6 +287,7 @@ class MADDPGPolicy(BasePolicy):
             n_critics=n_critics,
             mean_head=mean_anchored_quantiles,
             **masks,
+            **self.critic_design_kwargs,
         )
         self._build(lr_schedule)
 
@@ -506,8 +315,8 @@ class MADDPGPolicy(BasePolicy):
         self.actor.optimizer = self._make_optimizer(self.actor, lr_schedule(1))  # type: ignore[assignment]
 
     def _build_critics(self, lr_schedule: Schedule) -> None:
-        self.critic = MultiAgentQuantileCritic(**self.critic_kwargs)
-        self.critic_target = MultiAgentQuantileCritic(**self.critic_kwargs)
+        self.critic = self.critic_class(**self.critic_kwargs)
+        self.critic_target = self.critic_class(**self.critic_kwargs)
         self.critic_target.load_state_dict(self.critic.state_dict())
         self.critic.optimizer = self._make_optimizer(self.critic, lr_schedule(1))  # type: ignore[assignment]
 
@@ -539,6 +348,8 @@ class MADDPGPolicy(BasePolicy):
                 agent_spaces=self.agent_spaces,
                 mean_anchored_quantiles=self.mean_anchored_quantiles,
                 agent_groups=self.agent_groups,
+                critic=self.critic_name,
+                critic_kwargs=self.critic_design_kwargs or None,
             )
         )
         return data
@@ -621,6 +432,8 @@ class CnnPolicy(MADDPGPolicy):
         mean_anchored_quantiles: bool = False,
         agent_groups: tuple[int, ...] | None = None,
         agent_spaces: AgentSpaces | None = None,
+        critic: str = "joint",
+        critic_kwargs: dict[str, Any] | None = None,
     ) -> None:
         super().__init__(
             observation_space,
@@ -641,6 +454,8 @@ class CnnPolicy(MADDPGPolicy):
             mean_anchored_quantiles=mean_anchored_quantiles,
             agent_groups=agent_groups,
             agent_spaces=agent_spaces,
+            critic=critic,
+            critic_kwargs=critic_kwargs,
         )
 
 
@@ -684,3 +499,20 @@ def _check_agent_groups(agent_groups: Any, n_agents: int, share_actor: bool) -> 
     if share_actor:
         raise ValueError("share_actor=True already shares one actor between all agents; leave groups unset with it")
     return groups
+
+
+def _check_critic(critic: Any, critic_kwargs: Any) -> tuple[type[QuantileCriticBase], dict[str, Any]]:
+    """The critic class named by ``critic`` and its keyword arguments, checked where the policy takes them."""
+    if not isinstance(critic, str) or critic not in CRITICS:
+        raise ValueError(f"critic must be one of {sorted(CRITICS)}, got {critic!r}")
+    if critic_kwargs is None:
+        return CRITICS[critic], {}
+    if not isinstance(critic_kwargs, dict):
+        raise TypeError(f"critic_kwargs must be a dict or None, got {type(critic_kwargs).__name__}")
+    accepted = {"attention": ("embed_dim", "n_heads")}.get(critic, ())
+    unknown = sorted(set(critic_kwargs) - set(accepted))
+    if unknown:
+        raise ValueError(f"critic={critic!r} takes the critic_kwargs {list(accepted)}, got unknown keys {unknown}")
+    if critic == "attention":
+        check_attention_arguments(critic_kwargs.get("embed_dim", 64), critic_kwargs.get("n_heads", 4))
+    return CRITICS[critic], dict(critic_kwargs)

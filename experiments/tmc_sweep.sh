@@ -24,6 +24,7 @@ EVAL_SEED=${EVAL_SEED:-10000}
 BASELINES=${BASELINES:-"random greedy_step greedy_static"}
 TIMESTEPS=${TIMESTEPS:-}  # empty: the YAML entry's n_timesteps; a small value checks the pipeline
 read -r -a PARAMS <<< "${PARAMS:-}"
+SAVE_FREQ=${SAVE_FREQ:--1}  # a checkpoint every SAVE_FREQ timesteps (for the best-of-checkpoints protocol); -1: none
 TAG=${TAG:+${TAG}_}
 ENV_ID=uav_coverage_tmc_v1
 what=${1:-all}
@@ -46,7 +47,7 @@ if [ "$what" = train ] || [ "$what" = all ]; then
             logs="$OUT/logs/$run_name"
             start=$SECONDS
             run "$PY" -m sb3_maddpg train --algo maddpg --env "$ENV_ID" --env-kwargs "n_uavs:$n" --seed "$seed" \
-                ${TIMESTEPS:+-n "$TIMESTEPS"} -f "$logs" --eval-freq -1 ${PARAMS[@]+-params "${PARAMS[@]}"} \
+                ${TIMESTEPS:+-n "$TIMESTEPS"} -f "$logs" --eval-freq -1 --save-freq "$SAVE_FREQ" ${PARAMS[@]+-params "${PARAMS[@]}"} \
                 >"$OUT/train_$run_name.log" 2>&1
             echo $((SECONDS - start)) >"$OUT/train_$run_name.seconds"  # wall clock of the training run
             # the run's own n_uavs is read from its args.yml

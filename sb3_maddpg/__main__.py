@@ -414,6 +414,35 @@ def run_plot(args: argparse.Namespace) -> None:
         print(path)
 
 
+def run_select_checkpoint(args: argparse.Namespace) -> None:
+    """
+    The ``select-checkpoint`` command (``sb3_maddpg.evaluation.checkpoints``).
+
+    :param args: parsed arguments
+    """
+    from sb3_maddpg.evaluation.checkpoints import run_checkpoints, select_checkpoint, write_selection
+
+    _check_writable(args.out, "--out")
+    try:
+        models = run_checkpoints(args.model)
+        selection = select_checkpoint(
+            models,
+            metric=args.metric,
+            validation_episodes=args.validation_episodes,
+            validation_seed=args.validation_seed,
+            test_episodes=args.episodes,
+            test_seed=args.seed,
+            env_kwargs=parse_key_values(args.env_kwargs, "--env-kwargs"),
+            device=args.device,
+        )
+    except ValueError as error:
+        raise UsageError(str(error)) from error
+    print(f"validation {selection['metric']}: " + ", ".join(f"{path.name} {score:.4f}" for path, score in selection["scores"]))
+    print(selection["table"])
+    for path in write_selection(args.out, selection):
+        print(path)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """
     :return: the command's parser (``train``, ``optimize`` and ``enjoy`` hand their arguments to RL Zoo's parsers)
@@ -501,6 +530,22 @@ def build_parser() -> argparse.ArgumentParser:
     )
     plot.add_argument("--out", default=os.path.join("results", "figures"), help="output folder")
     plot.add_argument("--window", type=int, help="moving-average window (default: a twentieth of the episodes)")
+
+    select = commands.add_parser(
+        "select-checkpoint",
+        help="the best of a run's checkpoints, chosen on validation episodes, beside the final model on test episodes",
+        description="Score the run's checkpoints (train --save-freq) and its final model on validation episodes, pick "
+        "the best, and report it and the final model on the test episodes (evaluate's --seed and --episodes).",
+    )
+    select.add_argument("--model", required=True, help="the run's final model; its checkpoints are the *_steps.zip beside it")
+    select.add_argument("--metric", help="metric to maximise (default: energy_efficiency where reported, else return)")
+    select.add_argument("--validation-episodes", type=int, default=10, help="episodes per model (default: 10)")
+    select.add_argument("--validation-seed", type=int, default=20_000, help="first validation seed (default: 20000)")
+    select.add_argument("--episodes", type=int, default=20, help="test episodes (default: 20)")
+    select.add_argument("--seed", type=int, default=10_000, help="first test seed (default: 10000)")
+    select.add_argument("--env-kwargs", nargs="+", metavar="KEY:VALUE", help="env arguments over the run's")
+    select.add_argument("--device", default="auto", help="device of the models (default: auto)")
+    select.add_argument("--out", default=os.path.join("results", "checkpoints"), help="output folder")
     return parser
 
 
@@ -532,11 +577,13 @@ def main(argv: list[str] | None = None) -> int:
             run_evaluate(args)
         elif args.command == "plot":
             run_plot(args)
+        elif args.command == "select-checkpoint":
+            run_select_checkpoint(args)
         else:
             parser.print_help(sys.stderr)
             return 2
     except UsageError as error:
-        _fail(command if command in (*ZOO_COMMANDS, "evaluate", "plot") else None, str(error))
+        _fail(command if command in (*ZOO_COMMANDS, "evaluate", "plot", "select-checkpoint") else None, str(error))
     return 0
 
 

@@ -11,8 +11,8 @@ moves the actors'. Each candidate gets
   the next positions), with UAV i at the candidate's end point.
 
 With ``--rollout H`` each candidate also gets UAV i's own discounted return over the next H steps when it makes
-that move and the team then flies its policy (the episode replayed from its seed and recorded actions: the env has no
-randomness after the reset without hazards), the quantity critic i estimates, truncated at H (γ^H of the tail left
+that move and the team then flies its policy (from a snapshot of the episode's state, ``env.snapshot()``: H steps a
+candidate), the quantity critic i estimates, truncated at H (γ^H of the tail left
 out), and the best-coverage spot once more held: UAV i hovers there after the move while its teammates fly on (a
 policy that keeps the better spot rather than a one-step deviation from the learned one).
 
@@ -118,18 +118,18 @@ def main() -> None:
         core = env.core
         if core.action_mode != "cartesian":
             raise ValueError("the candidates are Cartesian moves: use v1's action_mode='cartesian'")
-        step, history = 0, []
+        scratch = uav_coverage_v1.parallel_env(**env_kwargs)  # where the candidates' rollouts run
+        step = 0
         while env.agents:
             stacked = np.stack([observations[agent] for agent in env.possible_agents])
             actions, _ = model.predict(stacked, deterministic=True)  # env actions in [0, 1]
             if step in args.steps:
                 scored = score_moves(model, core, stacked, actions, episode, step)
                 if args.rollout > 0:
-                    replay = (env_kwargs, args.seed + episode, history)
+                    replay = (scratch, env.snapshot())
                     for row in scored:
                         row.update(rollout_truth(model, replay, actions, row, args.rollout))
                 rows.extend(scored)
-            history.append(actions)
             observations, *_ = env.step({agent: actions[i] for i, agent in enumerate(env.possible_agents)})
             step += 1
     summarise(rows, args.rollout)
@@ -220,11 +220,8 @@ def candidate_return(
     UAV i's discounted return over ``horizon`` steps when it makes ``move`` now and then follows its policy, or
     hovers with ``hold``; its teammates follow their policy.
     """
-    env_kwargs, seed, history = replay
-    env = uav_coverage_v1.parallel_env(**env_kwargs)
-    observations, _ = env.reset(seed=seed)
-    for past in history:
-        observations, *_ = env.step({agent: past[j] for j, agent in enumerate(env.possible_agents)})
+    env, snapshot = replay
+    env.restore(snapshot)
     joint = actions.copy()
     joint[i] = np.clip(as_actions(move, env.core.max_distance), 0.0, 1.0)
     total, discount = 0.0, 1.0

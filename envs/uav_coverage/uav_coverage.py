@@ -5,6 +5,9 @@ All UAVs move at once, so the parallel env is the real one; the AEC form is Pett
 
 from __future__ import annotations
 
+import copy
+from dataclasses import dataclass
+
 from typing import Any
 
 import numpy as np
@@ -18,6 +21,17 @@ from pettingzoo.utils.env import AECEnv
 from .core import UAVCoverageCore
 
 __all__ = ["UAVCoverageEnv", "env", "parallel_env", "raw_env"]
+
+
+@dataclass(frozen=True)
+class UAVCoverageSnapshot:
+    """
+    The state of an episode, taken by ``UAVCoverageEnv.snapshot`` and given back by ``restore``: the simulation with
+    its random generator, and the live agents. A private copy: stepping the env changes nothing in it.
+    """
+
+    core: UAVCoverageCore
+    agents: tuple[str, ...]
 
 
 class UAVCoverageEnv(ParallelEnv, EzPickle):
@@ -81,6 +95,30 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
             raise ValueError(f"max_cycles must be an integer >= 1, got {value!r}")
         self.core.max_cycles = int(value)
+
+    def snapshot(self) -> UAVCoverageSnapshot:
+        """
+        The episode's state, to come back to with ``restore``: what a step does next depends on nothing else, hazards'
+        random draws included. A candidate action's return over H steps then costs H steps instead of a replay of the
+        episode (``copy.deepcopy`` of the env does not serve: like every ``EzPickle`` env it builds a new env from the
+        constructor's arguments).
+
+        :return: a private copy of the state
+        """
+        return UAVCoverageSnapshot(copy.deepcopy(self.core), tuple(self.agents))
+
+    def restore(self, snapshot: UAVCoverageSnapshot) -> None:
+        """
+        Return to a state taken by ``snapshot`` (any number of times: the snapshot stays as it was).
+
+        :param snapshot: from ``snapshot`` of an env with the same agents
+        """
+        if not isinstance(snapshot, UAVCoverageSnapshot):
+            raise TypeError(f"restore takes a UAVCoverageSnapshot from snapshot(), got {type(snapshot).__name__}")
+        if snapshot.core.n_uavs != self.core.n_uavs:
+            raise ValueError(f"the snapshot has {snapshot.core.n_uavs} UAVs, this env {self.core.n_uavs}")
+        self.core = copy.deepcopy(snapshot.core)
+        self.agents = list(snapshot.agents)
 
     # -----------------------------------------------------------------------------------------------------------------
     def reset(

@@ -241,6 +241,12 @@ def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
     cvar_alpha = arguments["cvar_alpha"]
     if isinstance(cvar_alpha, bool) or not isinstance(cvar_alpha, Real) or not 0.0 < cvar_alpha <= 1.0:
         raise ValueError(f"cvar_alpha must be a number in (0, 1] (1 = risk-neutral mean), got {cvar_alpha!r}")
+    check_int("cvar_alpha_anneal_steps (0: no annealing)", arguments["cvar_alpha_anneal_steps"], 0)
+    if arguments["cvar_alpha_anneal_steps"] > 0 and arguments["cuda_graph"]:
+        raise ValueError(
+            "cvar_alpha_anneal_steps changes the risk level as training goes, which a CUDA graph cannot follow (it "
+            "records one): leave cuda_graph=False or cvar_alpha_anneal_steps=0"
+        )
     check_bool("share_actor", arguments["share_actor"])
     check_groups(arguments["groups"])
     if arguments["groups"] is not None and arguments["share_actor"]:

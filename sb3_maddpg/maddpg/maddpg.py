@@ -107,6 +107,10 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
     :param replay_buffer_class: replay buffer class (default ``MultiAgentReplayBuffer``)
     :param replay_buffer_kwargs: keyword arguments of the replay buffer
     :param cvar_alpha: CVaR level alpha in (0, 1] of the actor objective; 1 is risk-neutral (the mean)
+    :param cvar_alpha_anneal_steps: the risk level anneals linearly from 1 (the mean) at timestep 0 to ``cvar_alpha``
+        at this timestep, and stays there (as CeSoR's, Greenberg et al., NeurIPS 2022: a risk-averse gradient from the
+        start ignores the good outcomes not yet learned). Counted in timesteps, so a resumed run continues it exactly;
+        0, the default, uses ``cvar_alpha`` from the start. Logged as ``train/cvar_alpha``
     :param actor_reg: weight of the penalty on the actors' squared pre-tanh outputs, added to each actor loss.
         It keeps the tanh away from saturation, where its gradient vanishes and an actor can get stuck at a bound
         of the action space (the MADDPG authors' implementation uses 1e-3); 0, the default, turns it off
@@ -195,6 +199,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         replay_buffer_class: type[ReplayBuffer] | None = None,
         replay_buffer_kwargs: dict[str, Any] | None = None,
         cvar_alpha: float = 1.0,
+        cvar_alpha_anneal_steps: int = 0,
         actor_reg: float = 0.0,
         policy_delay: int = 1,
         critic_warmup_steps: int = 0,
@@ -224,6 +229,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             type(self).__name__,
             dict(
                 cvar_alpha=cvar_alpha,
+                cvar_alpha_anneal_steps=cvar_alpha_anneal_steps,
                 actor_reg=actor_reg,
                 policy_delay=policy_delay,
                 critic_warmup_steps=critic_warmup_steps,
@@ -266,6 +272,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             flush_denormals=flush_denormals,
         )
         self.cvar_alpha = float(cvar_alpha)
+        self.cvar_alpha_anneal_steps = int(cvar_alpha_anneal_steps)
         self.actor_reg = float(actor_reg)
         self.policy_delay = int(policy_delay)
         self.critic_warmup_steps = int(critic_warmup_steps)
@@ -333,6 +340,15 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         self.actor_target = self.policy.actor_target
         self.critic = self.policy.critic
         self.critic_target = self.policy.critic_target
+
+    def current_cvar_alpha(self) -> float:
+        """
+        The risk level of the actor objective at the current timestep: ``cvar_alpha``, or during the annealing
+        (``cvar_alpha_anneal_steps``) the value on the line from 1 at timestep 0 to ``cvar_alpha``.
+        """
+        if self.num_timesteps >= self.cvar_alpha_anneal_steps:  # also without annealing (0 steps)
+            return self.cvar_alpha
+        return 1.0 + (self.cvar_alpha - 1.0) * self.num_timesteps / self.cvar_alpha_anneal_steps
 
     def critic_loss(self, replay_data: MultiAgentReplayBufferSamples) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
         """
@@ -416,7 +432,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         actions = self._present_actions(replay_data.actions, present)
         quantiles = self.critic.quantiles_with_own_actions(features, actions, policy_actions)  # (B, N, n_q)
         regularisation = self.actor.agent_mean(preactivations.float().pow(2))  # (N,), over each agent's own entries
-        return -batch_mean(cvar(quantiles.float(), self.cvar_alpha), present) + self.actor_reg * regularisation
+        return -batch_mean(cvar(quantiles.float(), self.current_cvar_alpha()), present) + self.actor_reg * regularisation
 
     def _presence(self, replay_data: MultiAgentReplayBufferSamples) -> tuple[th.Tensor | None, th.Tensor | None]:
         """
@@ -471,7 +487,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             stats = GradientStepStats(
                 critic_loss=critic_loss.detach(),
                 q_mean=current_quantiles.mean(dim=(0, 2)),
-                cvar=cvar(current_quantiles, self.cvar_alpha).mean(dim=0),
+                cvar=cvar(current_quantiles, self.current_cvar_alpha()).mean(dim=0),
                 q_spread=deviations.square().mean(dim=2).sqrt().mean(dim=0),
             )
 
@@ -518,6 +534,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         actor_lr = self.actor_lr_schedule(self._current_progress_remaining)
         set_learning_rate(self.actor.optimizer, actor_lr)
         self.logger.record("train/actor_learning_rate", actor_lr)
+        self.logger.record("train/cvar_alpha", self.current_cvar_alpha())
         assert self.replay_buffer is not None
 
         steps: list[GradientStepStats] = []

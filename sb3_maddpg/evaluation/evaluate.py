@@ -34,12 +34,15 @@ METRIC_SYMBOLS: dict[str, str] = {
     "crashes": "crashes",
     "link_failures": "link failures",
     "depletions": "depletions",
+    "zone_steps": "zone steps",
+    "zone_losses": "zone losses",
 }
 # Also kept per episode (team totals), not part of the summary table.
 COUNTS: tuple[str, ...] = ("wall_hits", "disconnections")
-# Hazard events per episode (team totals), reported by the UAV envs with a hazard switched on (gusts, link failures);
+# Hazard events per episode (team totals), reported by the UAV envs with a hazard switched on (gusts, link failures)
+# and by risky_reach_v0 (steps in its risky zone, losses taken there);
 # the summary table shows them where the env reports them.
-HAZARD_COUNTS: tuple[str, ...] = ("gusts", "crashes", "link_failures", "depletions")
+HAZARD_COUNTS: tuple[str, ...] = ("gusts", "crashes", "link_failures", "depletions", "zone_steps", "zone_losses")
 
 
 @dataclass

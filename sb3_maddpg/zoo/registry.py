@@ -178,6 +178,9 @@ register_multiagent_env("uav_coverage_hazard_cpu_v1", "sb3_maddpg_envs.uav_cover
 # The storm task on the CPU variant: a storm over the middle of the map that grounds a UAV it strikes
 # (uav_coverage_v1.STORM; docs/environment.md, "Hazards"), where the risk-neutral and the risk-averse optimum differ.
 register_multiagent_env("uav_coverage_storm_cpu_v1", "sb3_maddpg_envs.uav_coverage_v1:storm_parallel_env", {"obs_size": 16})
+# A small task where the mean and the lower tail prefer different ways (a visible risky zone across the short way):
+# the proving ground of the CVaR actor (sb3_maddpg_envs/risky_reach_v0.py).
+register_multiagent_env("risky_reach_v0", "sb3_maddpg_envs.risky_reach_v0:parallel_env")
 register_multiagent_env("simple_spread_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": True})
 # The same task with MPE2's default Discrete(5) actions (no-op, left, right, down, up), as in the MADDPG paper: the
 # actors learn through the straight-through Gumbel-softmax (docs/algorithm.md, "Discrete actions").

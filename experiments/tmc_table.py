@@ -6,8 +6,10 @@ paper's eta_T at that N.
     python experiments/tmc_table.py experiments/results/2026-12-04-tmc experiments/results/2026-12-05-tmc \
         experiments/results/2026-12-06-tmc/sweep --figure docs/figures/tmc_eta_vs_n.png
 
-Reads ``<out>/baselines/n<N>/results.csv``, ``<out>/eval/n<N>_s<seed>/results.csv`` (the ``evaluate`` command's) and
-``<out>/train_n<N>_s<seed>.seconds`` of every folder given (the runs of one sweep may lie in several).
+Reads ``<out>/baselines/n<N>/results.csv``, ``<out>/eval/[<tag>_]n<N>_s<seed>/results.csv`` (the ``evaluate``
+command's) and ``<out>/train_[<tag>_]n<N>_s<seed>.seconds`` of every folder given (the runs of one sweep may lie in
+several). Runs with a tag (``TAG`` of tmc_sweep.sh, e.g. ``attn`` for the attention critic) are rows and lines of their
+own, named after it.
 """
 
 import argparse
@@ -49,26 +51,28 @@ def main() -> None:
             etas[f"{row['method']} (here)"][int(folder.name[1:])] = eta
 
     # Trained runs: one seed's value is its mean over the episodes; the row is mean ± std over seeds.
-    trained: dict[int, list[dict[str, str]]] = defaultdict(list)
-    seconds: dict[int, list[float]] = defaultdict(list)
-    for folder in [folder for out in args.out for folder in (out / "eval").glob("n*_s*")]:
-        match = re.fullmatch(r"n(\d+)_s(\d+)", folder.name)
+    trained: dict[tuple[str, int], list[dict[str, str]]] = defaultdict(list)  # (tag, N) -> one row per seed
+    seconds: dict[tuple[str, int], list[float]] = defaultdict(list)
+    for folder in [folder for out in args.out for folder in (out / "eval").glob("*n*_s*")]:
+        match = re.fullmatch(r"(?:(\w+)_)?n(\d+)_s(\d+)", folder.name)
         if match and (folder / "results.csv").is_file():
-            trained[int(match.group(1))] += [r for r in read_rows(folder / "results.csv") if r["method"] != "random"]
+            key = (match.group(1) or "", int(match.group(2)))
+            trained[key] += [r for r in read_rows(folder / "results.csv") if r["method"] != "random"]
             timing = folder.parent.parent / f"train_{folder.name}.seconds"
             if timing.is_file():
-                seconds[int(match.group(1))].append(float(timing.read_text()))
-    for n in sorted(trained):
-        rows = trained[n]
+                seconds[key].append(float(timing.read_text()))
+    for tag, n in sorted(trained, key=lambda key: (key[1], key[0])):
+        rows, timings = trained[tag, n], seconds[tag, n]
         cells = []
         for key in METRICS:
             values = np.array([float(r[f"{key}_mean"]) for r in rows])
             cells.append(f"{values.mean():.3f} ± {values.std():.3f}")
-        minutes = f"{np.mean(seconds[n]) / 60:.1f}" if seconds[n] else ""
+        minutes = f"{np.mean(timings) / 60:.1f}" if timings else ""
         seed_etas = np.array([float(r["energy_efficiency_mean"]) for r in rows])
-        # one line for the trained method whatever the seeds per N (the table gives them)
-        etas[f"{rows[0]['method']} (here, mean ± std over seeds)"][n] = (float(seed_etas.mean()), float(seed_etas.std()))
-        label = f"| {n} | {rows[0]['method']} ({len(rows)} seeds) | {rows[0]['episodes']} each | "
+        method = f"{rows[0]['method']} {tag}".strip()
+        # one line for each trained method whatever the seeds per N (the table gives them)
+        etas[f"{method} (here, mean ± std over seeds)"][n] = (float(seed_etas.mean()), float(seed_etas.std()))
+        label = f"| {n} | {method} ({len(rows)} seeds: {', '.join(f'{eta:.3f}' for eta in seed_etas)}) | {rows[0]['episodes']} each | "
         lines.append(label + " | ".join(cells) + f" | {minutes} |")
     print("\n".join(lines))
 

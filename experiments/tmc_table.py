@@ -72,7 +72,8 @@ def main() -> None:
         method = f"{rows[0]['method']} {tag}".strip()
         # one line for each trained method whatever the seeds per N (the table gives them)
         etas[f"{method} (here, mean ± std over seeds)"][n] = (float(seed_etas.mean()), float(seed_etas.std()))
-        label = f"| {n} | {method} ({len(rows)} seeds: {', '.join(f'{eta:.3f}' for eta in seed_etas)}) | {rows[0]['episodes']} each | "
+        by_seed = ", ".join(f"{eta:.3f}" for eta in seed_etas)
+        label = f"| {n} | {method} ({len(rows)} seeds: {by_seed}) | {rows[0]['episodes']} each | "
         lines.append(label + " | ".join(cells) + f" | {minutes} |")
     print("\n".join(lines))
 

@@ -19,6 +19,7 @@ import time
 import torch as th
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
+from sb3_maddpg.common.denormals import flushed_denormals
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS
 
 CRITICS = ("joint", "attention")
@@ -72,7 +73,8 @@ def main() -> None:
         for _ in range(args.rounds):
             for critic, model in models.items():
                 start = time.process_time()
-                model.train(gradient_steps=args.updates, batch_size=batch_size)
+                with flushed_denormals():  # as learn() runs its updates
+                    model.train(gradient_steps=args.updates, batch_size=batch_size)
                 times[critic].append((time.process_time() - start) / args.updates * 1000)
         joint = statistics.median(times["joint"])
         for critic, model in models.items():

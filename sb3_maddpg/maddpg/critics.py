@@ -9,10 +9,10 @@ The centralised quantile critics of MADDPG and MATD3, a choice of the policy (``
 Both return the same quantities to the algorithm, so MADDPG and MATD3 train either without knowing which.
 """
 
-import math
 from typing import Any
 
 import torch as th
+import torch.nn.functional as F
 from gymnasium import spaces
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
@@ -415,26 +415,33 @@ class AttentionQuantileCritic(QuantileCriticBase):
             return features.new_zeros(n_networks, batch_size, 1, self.embed_dim)
         networks = slice(0, n_networks)
         heads, head_dim = self.n_heads, self.embed_dim // self.n_heads
-        # (C, B * I * N, F + A) -> embeddings e_j, keys and values: (C, B, I, heads, N, d)
+        # (C, B * I * N, F + A) -> embeddings e_j, keys and values (C, B * I * N, E)
         teammates = th.cat([features.unsqueeze(1).expand(-1, n_joint, -1, -1), teammate_actions], dim=-1)
         teammates = teammates.reshape(1, batch_size * n_joint * n_agents, -1).expand(n_networks, -1, -1)
         embedded = self.activation(self.teammate_embedding.forward_model_major(teammates, networks))
 
-        by_head = (n_networks, batch_size, n_joint, n_agents, heads, head_dim)
-        keys = self.key.forward_model_major(embedded, networks).view(by_head)
-        values = self.activation(self.value.forward_model_major(embedded, networks)).view(by_head)
-        # Queries from each agent's own encoding: (C, B, N, 1, heads, d)
+        keys = self.key.forward_model_major(embedded, networks)
+        values = self.activation(self.value.forward_model_major(embedded, networks))
         queries = self.query.forward_model_major(
             features.reshape(1, batch_size * n_agents, -1).expand(n_networks, -1, -1), networks
         )
-        queries = queries.view(n_networks, batch_size, n_agents, 1, heads, head_dim)
-        # Critic i's scores of agents j, (C, B, N_i, N_j, heads) (I = 1 broadcasts to every critic). Products and sums
-        # rather than matrix products: the matrices are (1 x d) by (d x N), and a batched product of thousands of them
-        # costs far more in dispatch than the few floats it multiplies
-        scores = (queries * keys).sum(dim=-1) / math.sqrt(head_dim)
-        itself = th.eye(n_agents, dtype=th.bool, device=features.device).unsqueeze(-1)  # (N_i, N_j, 1)
-        weights = th.softmax(scores.masked_fill(itself, float("-inf")), dim=3)
-        context = (weights.unsqueeze(-1) * values).sum(dim=3)  # (C, B, N, heads, d)
+        # Each critic i attends to every agent j but itself (a boolean mask: True takes part)
+        others = ~th.eye(n_agents, dtype=th.bool, device=features.device)
+        if n_joint == 1:
+            # One set of teammates for every critic: the N queries attend together, (C, B, heads, N, d)
+            def by_head(x: th.Tensor) -> th.Tensor:
+                return x.view(n_networks, batch_size, n_agents, heads, head_dim).transpose(2, 3)
+
+            context = F.scaled_dot_product_attention(by_head(queries), by_head(keys), by_head(values), attn_mask=others)
+            context = context.transpose(2, 3)  # (C, B, N, heads, d)
+        else:
+            # Critic i's own teammates: one query each, (C, B, N_i, heads, 1 or N_j, d)
+            def by_critic(x: th.Tensor) -> th.Tensor:
+                return x.view(n_networks, batch_size, n_agents, n_agents, heads, head_dim).transpose(3, 4)
+
+            single_queries = queries.view(n_networks, batch_size, n_agents, heads, 1, head_dim)
+            mask = others.view(n_agents, 1, 1, n_agents)
+            context = F.scaled_dot_product_attention(single_queries, by_critic(keys), by_critic(values), attn_mask=mask)
         return context.reshape(n_networks, batch_size, n_agents, self.embed_dim)
 
 

@@ -175,6 +175,22 @@ def _check_writable(folder: str, flag: str) -> None:
         raise UsageError(str(error)) from error
 
 
+def _check_trained_agent(model_path: str, algo: str) -> None:
+    """``-i``: a model saved by the algorithm being trained (``load`` refuses another), said before the env is built."""
+    from sb3_maddpg.common.model_files import read_maddpg_data
+    from sb3_maddpg.evaluation.report import saved_algorithm
+
+    try:
+        saved = saved_algorithm(read_maddpg_data(model_path, ("policy_class",))["policy_class"]).__name__
+    except ValueError as error:
+        raise UsageError(f"--trained-agent: {error}") from error
+    if saved.lower() != algo:
+        raise UsageError(
+            f"--trained-agent: {model_path} is a {saved} model, not a {algo.upper()} one: "
+            f"resume it with --algo {saved.lower()}"
+        )
+
+
 def _check_model_fits_env(model_path: str, env_id: str, env_kwargs: dict[str, Any] | None) -> None:
     """The check ``evaluate`` makes, for ``enjoy``: the run's env kwargs (as enjoy reads them) and ``--env-kwargs``."""
     from sb3_maddpg.evaluation.report import ModelEnvMismatchError, check_model_fits_env, find_run_config
@@ -271,6 +287,8 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         _check_config(config, args.env)
     if args.trained_agent and not (args.trained_agent.endswith(".zip") and os.path.isfile(args.trained_agent)):
         raise UsageError(f"--trained-agent: {args.trained_agent} is not an existing .zip model file")
+    if args.trained_agent and args.algo in MULTIAGENT_ALGOS:
+        _check_trained_agent(args.trained_agent, args.algo)
 
     if command == "optimize":
         argv.append("-optimize")

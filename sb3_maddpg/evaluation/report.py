@@ -111,15 +111,15 @@ def find_run_config(model_path: str | os.PathLike) -> tuple[str | None, dict[str
 def saved_algorithm(policy_class: Any) -> type:
     """
     The library's algorithm that saved a model, told by its saved policy class (``read_maddpg_data`` reads it without
-    unpickling code): ``MATD3`` for MATD3's twin-critic policies, ``MADDPG`` otherwise.
+    unpickling code; see ``algorithm_of_policy``): ``MATD3`` for MATD3's twin-critic policies, ``MADDPG`` otherwise.
 
     :param policy_class: the model's saved ``policy_class``
     :return: the algorithm class to load it with
     """
-    from sb3_maddpg import MADDPG, MATD3
-    from sb3_maddpg.matd3.policies import MATD3Policy
+    from sb3_maddpg import MADDPG
+    from sb3_maddpg.common.off_policy_algorithm import algorithm_of_policy
 
-    return MATD3 if isinstance(policy_class, type) and issubclass(policy_class, MATD3Policy) else MADDPG
+    return algorithm_of_policy(policy_class) or MADDPG
 
 
 def check_model_fits_env(model_path: str | os.PathLike, env_id: str, env_kwargs: dict[str, Any]) -> dict[str, Any]:

@@ -5,9 +5,11 @@ import pytest
 import supersuit as ss
 from gymnasium import spaces
 from maddpg_test_envs import TargetReachEnv
+from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise, VectorizedActionNoise
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sb3_maddpg import MADDPG, make_multiagent_vec_env
+from sb3_maddpg import MADDPG, MATD3, make_multiagent_vec_env
+from sb3_maddpg.common.noise import DecayingGaussianNoise
 
 
 class MultiDiscreteActionEnv(TargetReachEnv):
@@ -97,11 +99,29 @@ def test_cnn_policy_on_vector_observations():
         MADDPG("CnnPolicy", venv)
 
 
-@pytest.mark.parametrize("actor_reg", [-1e-3, float("nan"), "0.1", True])
-def test_actor_reg_must_be_non_negative(actor_reg):
+@pytest.mark.parametrize("algorithm", [MADDPG, MATD3])
+@pytest.mark.parametrize("actor_reg", [-1e-3, float("nan"), float("inf"), "0.1", True])
+def test_actor_reg_must_be_finite_and_non_negative(algorithm, actor_reg):
     venv = make_multiagent_vec_env(TargetReachEnv)
-    with pytest.raises(ValueError, match="actor_reg must be a number >= 0"):
-        MADDPG("MlpPolicy", venv, actor_reg=actor_reg)
+    with pytest.raises(ValueError, match=r"actor_reg \(0 turns the penalty off\) must be a finite number >= 0"):
+        algorithm("MlpPolicy", venv, actor_reg=actor_reg)
+
+
+@pytest.mark.parametrize(
+    ("noise", "message"),
+    [
+        (NormalActionNoise(np.zeros(2), np.full(2, np.nan)), "NormalActionNoise's sigma must be finite numbers >= 0"),
+        (NormalActionNoise(np.zeros(2), -0.1 * np.ones(2)), "NormalActionNoise's sigma must be finite numbers >= 0"),
+        (NormalActionNoise(np.full(2, np.inf), np.ones(2)), "NormalActionNoise's mean must be finite numbers, got"),
+        (OrnsteinUhlenbeckActionNoise(np.zeros(2), np.ones(2), theta=-1.0), "OrnsteinUhlenbeckActionNoise.s theta must be"),
+        (DecayingGaussianNoise(np.zeros(2), sigma=np.nan), "DecayingGaussianNoise's sigma must be finite numbers >= 0"),
+        (VectorizedActionNoise(NormalActionNoise(np.zeros(2), -np.ones(2)), 3), "NormalActionNoise's sigma must be"),
+    ],
+)
+def test_action_noise_with_a_nan_or_negative_sigma_is_refused_at_construction(noise, message):
+    venv = make_multiagent_vec_env(TargetReachEnv)
+    with pytest.raises(ValueError, match=f"action_noise: {message}"):
+        MATD3("MlpPolicy", venv, action_noise=noise)
 
 
 @pytest.mark.parametrize("name", ["buffer_size", "batch_size"])

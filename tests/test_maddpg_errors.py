@@ -27,6 +27,11 @@ class BoxAndDiscreteEnv(TargetReachEnv):
         return spaces.Box(-1.0, 1.0, (2,), np.float32) if agent == "agent_0" else spaces.Discrete(5)
 
 
+class EmptyBoxActionEnv(TargetReachEnv):
+    def action_space(self, agent):
+        return spaces.Box(-1.0, 1.0, (0,), np.float32)
+
+
 def raw_supersuit_env(env, n_envs=1):
     """SuperSuit's own VecEnv: no n_agents attribute, SuperSuit's checks only."""
     return ss.concat_vec_envs_v1(ss.pettingzoo_env_to_vec_env_v1(env), n_envs, base_class="stable_baselines3")
@@ -38,6 +43,14 @@ def test_multidiscrete_action_space():
         make_multiagent_vec_env(MultiDiscreteActionEnv)
     with pytest.raises(TypeError, match=r"Box \(continuous\) and Discrete action spaces; MultiDiscrete"):
         MADDPG("MlpPolicy", raw_supersuit_env(MultiDiscreteActionEnv()), n_agents=2)
+
+
+def test_an_empty_box_action_space_is_refused_where_the_env_enters():
+    message = r"needs at least one action entry per agent; got the empty action space Box\(\[\], \[\], \(0,\), float32\)"
+    with pytest.raises(ValueError, match=f"MADDPG \\(agent 'agent_0'\\) {message}"):
+        make_multiagent_vec_env(EmptyBoxActionEnv)
+    with pytest.raises(ValueError, match=f"MATD3 {message}"):
+        MATD3("MlpPolicy", raw_supersuit_env(EmptyBoxActionEnv()), n_agents=2)
 
 
 def test_agents_with_different_spaces():

@@ -850,14 +850,15 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
 
     def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
         """
-        Load a replay buffer saved by ``save_replay_buffer``, after checking that it fits this model: the same agents,
-        observation shape and dtype, and action size. A buffer from another number of environment copies is laid
+        Load a replay buffer saved by ``save_replay_buffer``, after checking that it is whole (its fields agree with
+        each other, its rewards are finite: ``MultiAgentReplayBuffer.check_loaded``) and fits this model: the same
+        agents, observation shape and dtype, and action size. A buffer from another number of environment copies is laid
         out again for this model's copies (``MultiAgentReplayBuffer.with_copies``): every joint transition is kept,
         up to this model's ``buffer_size``.
 
         :param path: the pickle file, or an open binary file
         :param truncate_last_traj: unused (only for SB3's ``HerReplayBuffer``)
-        :raises ValueError: if the buffer does not fit, naming its shapes and the model's
+        :raises ValueError: if the buffer is damaged, or does not fit, naming its shapes and the model's
         """
         name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the replay buffer file"
         try:
@@ -873,6 +874,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         """Check that a loaded buffer fits the model; lay it out for the model's number of copies."""
         if not isinstance(buffer, MultiAgentReplayBuffer):
             raise TypeError(f"{name} holds a {type(buffer).__name__}, not a MultiAgentReplayBuffer of joint transitions")
+        buffer.check_loaded(name)
         assert self.n_agents is not None
         obs_shape, obs_dtype = tuple(self.observation_space.shape), self.observation_space.dtype  # type: ignore[arg-type]
         action_dim = action_width(self.action_space)

@@ -109,6 +109,9 @@ def _zoo_preparser(command: str) -> argparse.ArgumentParser:
         parser.add_argument("--load-best", action="store_true")
         parser.add_argument("--load-checkpoint", type=int)
         parser.add_argument("--load-last-checkpoint", action="store_true")
+        parser.add_argument("-n", "--n-timesteps", type=int)
+        if command == "record-video":
+            parser.add_argument("-o", "--output-folder")
     else:
         parser.add_argument("-n", "--n-timesteps", type=int)
         parser.add_argument("-tb", "--tensorboard-log", default="")
@@ -245,6 +248,10 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         check_env_kwargs(args.env, env_kwargs, flag="--env-kwargs")
 
     if command in PLAY_COMMANDS:
+        if args.n_timesteps is not None and args.n_timesteps <= 0:
+            raise UsageError(f"-n/--n-timesteps must be a positive number of timesteps to play, got {args.n_timesteps}")
+        if getattr(args, "output_folder", None):
+            _check_writable(args.output_folder, "-o/--output-folder")
         if not _has_flag(argv, "-f", "--folder"):
             # RL Zoo's default folder downloads models from the Hugging Face hub; this project's runs are in logs/.
             argv += ["-f", args.folder]
@@ -343,7 +350,15 @@ def run_evaluate(args: argparse.Namespace) -> None:
     :param args: parsed arguments
     """
     from sb3_maddpg.evaluation.baselines import make_baselines
-    from sb3_maddpg.evaluation.report import DEFAULT_ENV_ID, ModelEnvMismatchError, evaluate_and_report, find_run_config
+    from sb3_maddpg.evaluation.report import (
+        DEFAULT_ENV_ID,
+        ModelEnvMismatchError,
+        OpponentEnvMismatchError,
+        check_state_steps,
+        episode_limit,
+        evaluate_and_report,
+        find_run_config,
+    )
     from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
 
     _import_gym_packages(args.gym_packages)
@@ -364,13 +379,21 @@ def run_evaluate(args: argparse.Namespace) -> None:
         raise UsageError(f"unknown env {env_id!r}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
     env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs") or {}
     check_env_kwargs(env_id, {**run_env_kwargs, **env_kwargs}, flag="--env-kwargs")
+    # What the checks below need from the env, before any model is loaded or episode run
+    probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
+    is_uav_env, agents, max_cycles = (
+        getattr(probe, "core", None) is not None,
+        list(probe.possible_agents),
+        episode_limit(probe),
+    )
+    probe.close()
+    try:
+        check_state_steps(args.state_steps, max_cycles)
+    except ValueError as error:
+        raise UsageError(f"--state-steps: {error} ({env_id})") from error
     if args.baselines is not None:
-        # make_baselines' own checks, before any model is loaded or episode run
-        probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
-        is_uav_env = getattr(probe, "core", None) is not None
-        probe.close()
         try:
-            make_baselines(args.baselines, uav_env=is_uav_env)
+            make_baselines(args.baselines, uav_env=is_uav_env)  # its own checks
         except ValueError as error:
             raise UsageError(f"--baselines: {error} ({env_id})") from error
     if args.team is not None and model_path is None:
@@ -383,9 +406,6 @@ def run_evaluate(args: argparse.Namespace) -> None:
     if args.team is not None:
         from sb3_maddpg.common.callbacks import check_team
 
-        probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
-        agents = list(probe.possible_agents)
-        probe.close()
         try:
             check_team(args.team, agents)
         except ValueError as error:
@@ -407,6 +427,8 @@ def run_evaluate(args: argparse.Namespace) -> None:
             team=args.team,
             opponent=args.opponent,
         )
+    except OpponentEnvMismatchError as error:
+        raise UsageError(f"--opponent: {error}") from error
     except ModelEnvMismatchError as error:
         raise UsageError(f"--model: {error}") from error
 
@@ -417,7 +439,7 @@ def run_plot(args: argparse.Namespace) -> None:
 
     :param args: parsed arguments
     """
-    from sb3_maddpg.evaluation.figures import plot_training_logs
+    from sb3_maddpg.evaluation.figures import NotAMonitorFileError, plot_training_logs
 
     if not os.path.exists(args.log):
         raise UsageError(f"--log: {args.log} not found")
@@ -428,6 +450,8 @@ def run_plot(args: argparse.Namespace) -> None:
         paths = plot_training_logs(args.log, args.out, window=args.window)
     except FileNotFoundError as error:
         raise UsageError(str(error)) from error
+    except NotAMonitorFileError as error:
+        raise UsageError(f"--log: {error}") from error
     for path in paths:
         print(path)
 

@@ -28,6 +28,10 @@ class ModelEnvMismatchError(ValueError):
     """The model file cannot be loaded, or it was trained for another number of agents or other observations."""
 
 
+class OpponentEnvMismatchError(ModelEnvMismatchError):
+    """The same, for the opponent's model file (``evaluate --opponent``)."""
+
+
 class RunFileLoader(yaml.SafeLoader):
     """
     YAML's safe loader and the two Python tags RL Zoo writes in a run's ``args.yml`` and ``config.yml``
@@ -122,6 +126,35 @@ def saved_algorithm(policy_class: Any) -> type:
     return algorithm_of_policy(policy_class) or MADDPG
 
 
+def episode_limit(env: Any) -> int | None:
+    """
+    :param env: a multi-agent env (PettingZoo ParallelEnv)
+    :return: the most steps an episode has (the UAV envs' and MPE's ``max_cycles``), or None if the env does not say
+    """
+    core = getattr(env, "core", None)
+    return int(core.max_cycles) if core is not None else getattr(env.unwrapped, "max_cycles", None)
+
+
+def check_state_steps(state_steps: Sequence[int] | None, max_cycles: int | None) -> None:
+    """
+    Refuse steps of the recorded episode that no episode has (they would silently give no image).
+
+    :param state_steps: the steps asked for (None: the default)
+    :param max_cycles: the most steps an episode has (None: unknown, then only negative steps are refused)
+    :raises ValueError: naming the steps refused and the range accepted
+    """
+    if state_steps is None:
+        return
+    bad = [
+        step
+        for step in state_steps
+        if isinstance(step, bool) or not isinstance(step, int) or step < 0 or (max_cycles is not None and step > max_cycles)
+    ]
+    if bad:
+        accepted = "integers >= 0" if max_cycles is None else f"integers from 0 (after reset) to {max_cycles} (max_cycles)"
+        raise ValueError(f"state steps must be steps of the episode, {accepted}; got {bad}")
+
+
 def check_model_fits_env(model_path: str | os.PathLike, env_id: str, env_kwargs: dict[str, Any]) -> dict[str, Any]:
     """
     Check, without loading its networks, that a saved model can act on an env: it is an intact MADDPG model, for the
@@ -213,6 +246,7 @@ def evaluate_and_report(
         the same opponent. None: the model acts for every agent
     :param opponent: with ``team``: ``"random"``, or a saved model (.zip) that acts for the other agents
     :return: ``summary``, ``results``, ``table``, ``files`` (name -> path) and ``env_kwargs``
+    :raises ModelEnvMismatchError: if the model does not fit the env (``OpponentEnvMismatchError``: the opponent)
     """
     from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
 
@@ -227,8 +261,9 @@ def evaluate_and_report(
     probe = make_multiagent_env(env_id, **kwargs)
     core = getattr(probe, "core", None)
     render_mode = "rgb_array" if "rgb_array" in probe.metadata.get("render_modes", []) else None
-    max_cycles = int(core.max_cycles) if core is not None else getattr(probe.unwrapped, "max_cycles", None)
+    max_cycles = episode_limit(probe)
     probe.close()
+    check_state_steps(state_steps, max_cycles)
     if core is not None:
         # The UAV envs: new start positions every episode unless asked otherwise
         kwargs = {**run_env_kwargs, "start": "random", **(env_kwargs or {})}
@@ -242,7 +277,12 @@ def evaluate_and_report(
     if team is not None:
         if not controllers:
             raise ValueError("team= needs a model to act for the team")
-        rival = RandomController() if os.fspath(opponent) == "random" else _load_controller(opponent, env_id, kwargs, device)
+        try:
+            rival = (
+                RandomController() if os.fspath(opponent) == "random" else _load_controller(opponent, env_id, kwargs, device)
+            )
+        except ModelEnvMismatchError as error:
+            raise OpponentEnvMismatchError(str(error)) from error
         own = controllers.pop()
         controllers = [
             TeamController(team, own, rival),

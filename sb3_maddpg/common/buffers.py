@@ -474,12 +474,16 @@ class MultiAgentReplayBuffer(ReplayBuffer):
             ("_aux", "next observations"),
         ):
             values = th.as_tensor(getattr(self, field))
-            if values.is_floating_point() and not bool(th.isfinite(values).all()):
-                count = int((~th.isfinite(values)).sum())
-                raise ValueError(
-                    f"the replay buffer {name} holds {count} NaN or infinite {what}: training on them would make every "
-                    "weight NaN; save the buffer again from a run whose env returns finite values"
-                )
+            if not values.is_floating_point():
+                continue
+            # By blocks of slots, so that the check needs little memory beside a large buffer
+            for start in range(0, len(values), 4096):
+                if not bool(th.isfinite(values[start : start + 4096]).all()):
+                    row = start + int(th.nonzero(~th.isfinite(values[start : start + 4096]))[0, 0])
+                    raise ValueError(
+                        f"the replay buffer {name} holds NaN or infinite {what} (the first at slot {row}): training on "
+                        "them would make every weight NaN; save the buffer again from a run whose env returns finite values"
+                    )
 
     # --- Copies and layouts: one constructor path ------------------------------------------------------------------
 

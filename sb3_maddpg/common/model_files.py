@@ -9,6 +9,9 @@ names. Here they are unpickled only after the file is recognised as a MADDPG mod
 generators, Gymnasium spaces, torch tensors and devices, SB3's and this library's noises, schedules, buffers, policies
 and layers) and refuses every other reference with a ``ValueError``. A function saved by value (a ``lambda`` learning
 rate) is code, so it is refused too: pass it again with ``custom_objects`` (SB3's way to replace saved objects).
+Importing a module runs its code, so a reference is judged by its module's name before anything is imported: only the
+modules of an explicit list are imported, other modules of the same packages are looked up only when already loaded,
+and a ``__main__`` never; a name is looked up among the module's own attributes only.
 """
 
 import base64

@@ -86,7 +86,8 @@ def algorithm_of_policy(policy_class: Any) -> type["MultiAgentOffPolicyAlgorithm
     """
     if not isinstance(policy_class, type):
         return None
-    candidates, stack = [], [MultiAgentOffPolicyAlgorithm]
+    candidates: list[tuple[type[MultiAgentOffPolicyAlgorithm], type]] = []
+    stack: list[type[MultiAgentOffPolicyAlgorithm]] = [MultiAgentOffPolicyAlgorithm]
     while stack:
         algorithm = stack.pop()
         stack.extend(algorithm.__subclasses__())

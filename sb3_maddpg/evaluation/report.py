@@ -3,6 +3,7 @@
 import os
 import re
 from collections.abc import Sequence
+from numbers import Integral
 from pathlib import Path
 from typing import Any
 
@@ -145,11 +146,8 @@ def check_state_steps(state_steps: Sequence[int] | None, max_cycles: int | None)
     """
     if state_steps is None:
         return
-    bad = [
-        step
-        for step in state_steps
-        if isinstance(step, bool) or not isinstance(step, int) or step < 0 or (max_cycles is not None and step > max_cycles)
-    ]
+    last = max_cycles if max_cycles is not None else float("inf")
+    bad = [step for step in state_steps if isinstance(step, bool) or not isinstance(step, Integral) or not 0 <= step <= last]
     if bad:
         accepted = "integers >= 0" if max_cycles is None else f"integers from 0 (after reset) to {max_cycles} (max_cycles)"
         raise ValueError(f"state steps must be steps of the episode, {accepted}; got {bad}")

@@ -109,6 +109,9 @@ def _zoo_preparser(command: str) -> argparse.ArgumentParser:
         parser.add_argument("--load-best", action="store_true")
         parser.add_argument("--load-checkpoint", type=int)
         parser.add_argument("--load-last-checkpoint", action="store_true")
+        parser.add_argument("-n", "--n-timesteps", type=int)
+        if command == "record-video":
+            parser.add_argument("-o", "--output-folder")
     else:
         parser.add_argument("-n", "--n-timesteps", type=int)
         parser.add_argument("-tb", "--tensorboard-log", default="")
@@ -175,6 +178,22 @@ def _check_writable(folder: str, flag: str) -> None:
         raise UsageError(str(error)) from error
 
 
+def _check_trained_agent(model_path: str, algo: str) -> None:
+    """``-i``: a model saved by the algorithm being trained (``load`` refuses another), said before the env is built."""
+    from sb3_maddpg.common.model_files import read_maddpg_data
+    from sb3_maddpg.evaluation.report import saved_algorithm
+
+    try:
+        saved = saved_algorithm(read_maddpg_data(model_path, ("policy_class",))["policy_class"]).__name__
+    except ValueError as error:
+        raise UsageError(f"--trained-agent: {error}") from error
+    if saved.lower() != algo:
+        raise UsageError(
+            f"--trained-agent: {model_path} is a {saved} model, not a {algo.upper()} one: "
+            f"resume it with --algo {saved.lower()}"
+        )
+
+
 def _check_model_fits_env(model_path: str, env_id: str, env_kwargs: dict[str, Any] | None) -> None:
     """The check ``evaluate`` makes, for ``enjoy``: the run's env kwargs (as enjoy reads them) and ``--env-kwargs``."""
     from sb3_maddpg.evaluation.report import ModelEnvMismatchError, check_model_fits_env, find_run_config
@@ -229,6 +248,10 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         check_env_kwargs(args.env, env_kwargs, flag="--env-kwargs")
 
     if command in PLAY_COMMANDS:
+        if args.n_timesteps is not None and args.n_timesteps <= 0:
+            raise UsageError(f"-n/--n-timesteps must be a positive number of timesteps to play, got {args.n_timesteps}")
+        if getattr(args, "output_folder", None):
+            _check_writable(args.output_folder, "-o/--output-folder")
         if not _has_flag(argv, "-f", "--folder"):
             # RL Zoo's default folder downloads models from the Hugging Face hub; this project's runs are in logs/.
             argv += ["-f", args.folder]
@@ -271,6 +294,8 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         _check_config(config, args.env)
     if args.trained_agent and not (args.trained_agent.endswith(".zip") and os.path.isfile(args.trained_agent)):
         raise UsageError(f"--trained-agent: {args.trained_agent} is not an existing .zip model file")
+    if args.trained_agent and args.algo in MULTIAGENT_ALGOS:
+        _check_trained_agent(args.trained_agent, args.algo)
 
     if command == "optimize":
         argv.append("-optimize")
@@ -325,7 +350,15 @@ def run_evaluate(args: argparse.Namespace) -> None:
     :param args: parsed arguments
     """
     from sb3_maddpg.evaluation.baselines import make_baselines
-    from sb3_maddpg.evaluation.report import DEFAULT_ENV_ID, ModelEnvMismatchError, evaluate_and_report, find_run_config
+    from sb3_maddpg.evaluation.report import (
+        DEFAULT_ENV_ID,
+        ModelEnvMismatchError,
+        OpponentEnvMismatchError,
+        check_state_steps,
+        episode_limit,
+        evaluate_and_report,
+        find_run_config,
+    )
     from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
 
     _import_gym_packages(args.gym_packages)
@@ -346,13 +379,21 @@ def run_evaluate(args: argparse.Namespace) -> None:
         raise UsageError(f"unknown env {env_id!r}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
     env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs") or {}
     check_env_kwargs(env_id, {**run_env_kwargs, **env_kwargs}, flag="--env-kwargs")
+    # What the checks below need from the env, before any model is loaded or episode run
+    probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
+    is_uav_env, agents, max_cycles = (
+        getattr(probe, "core", None) is not None,
+        list(probe.possible_agents),
+        episode_limit(probe),
+    )
+    probe.close()
+    try:
+        check_state_steps(args.state_steps, max_cycles)
+    except ValueError as error:
+        raise UsageError(f"--state-steps: {error} ({env_id})") from error
     if args.baselines is not None:
-        # make_baselines' own checks, before any model is loaded or episode run
-        probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
-        is_uav_env = getattr(probe, "core", None) is not None
-        probe.close()
         try:
-            make_baselines(args.baselines, uav_env=is_uav_env)
+            make_baselines(args.baselines, uav_env=is_uav_env)  # its own checks
         except ValueError as error:
             raise UsageError(f"--baselines: {error} ({env_id})") from error
     if args.team is not None and model_path is None:
@@ -365,9 +406,6 @@ def run_evaluate(args: argparse.Namespace) -> None:
     if args.team is not None:
         from sb3_maddpg.common.callbacks import check_team
 
-        probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
-        agents = list(probe.possible_agents)
-        probe.close()
         try:
             check_team(args.team, agents)
         except ValueError as error:
@@ -389,6 +427,8 @@ def run_evaluate(args: argparse.Namespace) -> None:
             team=args.team,
             opponent=args.opponent,
         )
+    except OpponentEnvMismatchError as error:
+        raise UsageError(f"--opponent: {error}") from error
     except ModelEnvMismatchError as error:
         raise UsageError(f"--model: {error}") from error
 
@@ -399,7 +439,7 @@ def run_plot(args: argparse.Namespace) -> None:
 
     :param args: parsed arguments
     """
-    from sb3_maddpg.evaluation.figures import plot_training_logs
+    from sb3_maddpg.evaluation.figures import NotAMonitorFileError, plot_training_logs
 
     if not os.path.exists(args.log):
         raise UsageError(f"--log: {args.log} not found")
@@ -410,6 +450,8 @@ def run_plot(args: argparse.Namespace) -> None:
         paths = plot_training_logs(args.log, args.out, window=args.window)
     except FileNotFoundError as error:
         raise UsageError(str(error)) from error
+    except NotAMonitorFileError as error:
+        raise UsageError(f"--log: {error}") from error
     for path in paths:
         print(path)
 

@@ -155,7 +155,7 @@ def test_optimize_two_trials_on_sqlite(tmp_path: Path, monkeypatch: pytest.Monke
         (["enjoy", "--env", ENV, "-f", "no_such_folder"], "no trained model to load"),
         (["evaluate", "--model", "no_such_model.zip"], "model file no_such_model.zip not found"),
         (["evaluate", "--baselines-only", "--env", "no_such_env_v0"], "unknown env 'no_such_env_v0'"),
-        (["evaluate", "--baselines-only", "--env-kwargs", "n_uavs:0"], "n_uavs must be an integer >= 1"),
+        (["evaluate", "--baselines-only", "--env-kwargs", "n_uavs:0"], "n_uavs must be an integer in [1, 1024]"),
         (["plot", "--log", "no_such_folder"], "no_such_folder not found"),
     ],
 )

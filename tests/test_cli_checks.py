@@ -102,3 +102,37 @@ def test_rl_zoo_is_bounded_to_the_tested_releases() -> None:
     usage = (ROOT / "docs" / "usage.md").read_text()
     for internal in ("ExperimentManager", "create_test_env", "_load_pretrained_agent", "ALGOS"):
         assert internal in usage
+
+
+DATA = Path(__file__).resolve().parent / "data"
+# A binary file named monitor.csv (a PNG's first bytes): not text
+BINARY_MONITOR = DATA / "binary_monitor.csv"
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["plot", "--log", "model.zip"], "--log: model.zip is not a monitor.csv (a text CSV file written during training)"),
+        (["plot", "--log", str(BINARY_MONITOR)], "binary_monitor.csv is not a monitor.csv"),
+        (["plot", "--log", "run"], "run/monitor.csv is not a monitor.csv"),
+        (["record-video", "--env", ENV, "-o", "model.zip"], "-o/--output-folder: model.zip exists and is not a folder"),
+        (["record-video", "--env", ENV, "-n", "0"], "-n/--n-timesteps must be a positive number of timesteps to play, got 0"),
+        (["enjoy", "--env", ENV, "-n", "-3"], "-n/--n-timesteps must be a positive number of timesteps to play, got -3"),
+        (
+            ["evaluate", "--baselines-only", "--env", ENV, "--state-steps", "-5"],
+            "--state-steps: state steps must be steps of the episode, integers from 0 (after reset) to 300 (max_cycles); "
+            "got [-5]",
+        ),
+        (
+            ["evaluate", "--baselines-only", "--env", ENV, "--env-kwargs", "max_cycles:20", "--state-steps", "0", "21"],
+            "to 20 (max_cycles); got [21]",
+        ),
+    ],
+)
+def test_a_file_or_number_that_cannot_work_is_one_line(argv, message, tmp_path: Path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "model.zip").write_bytes(b"PK\x03\x04\x14\x00\x00\x00\x08\x00\xff\xfe\x80\x81 not a monitor file")
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "monitor.csv").write_bytes(BINARY_MONITOR.read_bytes())
+    assert message in _fails_with(argv, capsys)
+    assert not (tmp_path / "logs").exists() and not (tmp_path / "results").exists()

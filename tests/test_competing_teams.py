@@ -72,3 +72,17 @@ def test_team_controller_refuses_a_team_the_env_lacks() -> None:
     controller = TeamController("nobody", RandomController(), RandomController())
     with pytest.raises(ValueError, match="no agent of the team 'nobody' in this env; its teams: adversary, agent"):
         controller.reset(simple_adversary_v3.parallel_env(), seed=0)
+
+
+def test_an_opponent_that_does_not_fit_is_refused_naming_the_opponent(adversary_run: Path, tmp_path: Path, capsys) -> None:
+    from maddpg_test_envs import TargetReachEnv
+
+    from sb3_maddpg import MADDPG, make_multiagent_vec_env
+
+    other = tmp_path / "target_reach.zip"
+    MADDPG("MlpPolicy", make_multiagent_vec_env(TargetReachEnv), buffer_size=10, device="cpu").save(other)
+    args = ["evaluate", "--model", str(adversary_run), "--team", "agent", "--opponent", str(other)]
+    with pytest.raises(SystemExit) as exit_info:
+        main([*args, "--episodes", "1", "--out", str(tmp_path / "e")])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and "error: --opponent: the model was trained with 2 agents" in err

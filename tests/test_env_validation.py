@@ -93,3 +93,28 @@ def test_action_for_an_unknown_agent_raises():
     env.reset(seed=0)
     with pytest.raises(ValueError, match="not live"):
         env.step({"uav_0": np.array([0.1, 0.5]), "uav_1": np.array([0.1, 0.5]), "uav_7": np.array([0.1, 0.5])})
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        (dict(crash_ground_steps=2**63), r"crash_ground_steps must be an integer in \[0, 1000000000\], got 922337203685477"),
+        (dict(crash_ground_steps=10**30), r"crash_ground_steps must be an integer in \[0, 1000000000\]"),
+        (dict(max_cycles=2**63), r"max_cycles must be an integer in \[1, 1000000000\]"),
+        (dict(n_uavs=10**5), r"n_uavs must be an integer in \[1, 1024\], got 100000"),
+        (dict(map_size=10**5, obs_size=10**5), r"map_size must be an integer in \[1, 1024\], got 100000"),
+        (dict(obs_size=16 * 10**4), r"obs_size must be an integer in \[1, 4096\]"),
+        (dict(pois="uniform", n_pois=10**7), r"n_pois must be an integer in \[1, 1048576\]"),
+        (dict(n_uavs=1000, map_size=1000, obs_size=1000), r"n_uavs=1000, obs_size=1000: each step would hold 2.79 GiB of obs"),
+        (dict(n_uavs=200, pois="uniform", n_pois=10**6), r"n_uavs=200 with 1000000 PoIs .* more than the 1 GiB accepted"),
+    ],
+)
+def test_huge_sizes_and_step_counts_are_refused_at_construction(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        UAVCoverageCore(**kwargs)
+
+
+def test_max_cycles_set_later_is_bounded_too():
+    env = uav_coverage_v0.parallel_env(map_size=4, obs_size=4, n_uavs=2)
+    with pytest.raises(ValueError, match=r"max_cycles must be an integer in \[1, 1000000000\], got 10000000000"):
+        env.unwrapped.max_cycles = 10**10

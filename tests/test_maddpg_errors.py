@@ -5,9 +5,11 @@ import pytest
 import supersuit as ss
 from gymnasium import spaces
 from maddpg_test_envs import TargetReachEnv
+from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise, VectorizedActionNoise
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sb3_maddpg import MADDPG, make_multiagent_vec_env
+from sb3_maddpg import MADDPG, MATD3, make_multiagent_vec_env
+from sb3_maddpg.common.noise import DecayingGaussianNoise
 
 
 class MultiDiscreteActionEnv(TargetReachEnv):
@@ -25,6 +27,11 @@ class BoxAndDiscreteEnv(TargetReachEnv):
         return spaces.Box(-1.0, 1.0, (2,), np.float32) if agent == "agent_0" else spaces.Discrete(5)
 
 
+class EmptyBoxActionEnv(TargetReachEnv):
+    def action_space(self, agent):
+        return spaces.Box(-1.0, 1.0, (0,), np.float32)
+
+
 def raw_supersuit_env(env, n_envs=1):
     """SuperSuit's own VecEnv: no n_agents attribute, SuperSuit's checks only."""
     return ss.concat_vec_envs_v1(ss.pettingzoo_env_to_vec_env_v1(env), n_envs, base_class="stable_baselines3")
@@ -36,6 +43,14 @@ def test_multidiscrete_action_space():
         make_multiagent_vec_env(MultiDiscreteActionEnv)
     with pytest.raises(TypeError, match=r"Box \(continuous\) and Discrete action spaces; MultiDiscrete"):
         MADDPG("MlpPolicy", raw_supersuit_env(MultiDiscreteActionEnv()), n_agents=2)
+
+
+def test_an_empty_box_action_space_is_refused_where_the_env_enters():
+    message = r"needs at least one action entry per agent; got the empty action space Box\(\[\], \[\], \(0,\), float32\)"
+    with pytest.raises(ValueError, match=f"MADDPG \\(agent 'agent_0'\\) {message}"):
+        make_multiagent_vec_env(EmptyBoxActionEnv)
+    with pytest.raises(ValueError, match=f"MATD3 {message}"):
+        MATD3("MlpPolicy", raw_supersuit_env(EmptyBoxActionEnv()), n_agents=2)
 
 
 def test_agents_with_different_spaces():
@@ -97,11 +112,29 @@ def test_cnn_policy_on_vector_observations():
         MADDPG("CnnPolicy", venv)
 
 
-@pytest.mark.parametrize("actor_reg", [-1e-3, float("nan"), "0.1", True])
-def test_actor_reg_must_be_non_negative(actor_reg):
+@pytest.mark.parametrize("algorithm", [MADDPG, MATD3])
+@pytest.mark.parametrize("actor_reg", [-1e-3, float("nan"), float("inf"), "0.1", True])
+def test_actor_reg_must_be_finite_and_non_negative(algorithm, actor_reg):
     venv = make_multiagent_vec_env(TargetReachEnv)
-    with pytest.raises(ValueError, match="actor_reg must be a number >= 0"):
-        MADDPG("MlpPolicy", venv, actor_reg=actor_reg)
+    with pytest.raises(ValueError, match=r"actor_reg \(0 turns the penalty off\) must be a finite number >= 0"):
+        algorithm("MlpPolicy", venv, actor_reg=actor_reg)
+
+
+@pytest.mark.parametrize(
+    ("noise", "message"),
+    [
+        (NormalActionNoise(np.zeros(2), np.full(2, np.nan)), "NormalActionNoise's sigma must be finite numbers >= 0"),
+        (NormalActionNoise(np.zeros(2), -0.1 * np.ones(2)), "NormalActionNoise's sigma must be finite numbers >= 0"),
+        (NormalActionNoise(np.full(2, np.inf), np.ones(2)), "NormalActionNoise's mean must be finite numbers, got"),
+        (OrnsteinUhlenbeckActionNoise(np.zeros(2), np.ones(2), theta=-1.0), "OrnsteinUhlenbeckActionNoise.s theta must be"),
+        (DecayingGaussianNoise(np.zeros(2), sigma=np.nan), "DecayingGaussianNoise's sigma must be finite numbers >= 0"),
+        (VectorizedActionNoise(NormalActionNoise(np.zeros(2), -np.ones(2)), 3), "NormalActionNoise's sigma must be"),
+    ],
+)
+def test_action_noise_with_a_nan_or_negative_sigma_is_refused_at_construction(noise, message):
+    venv = make_multiagent_vec_env(TargetReachEnv)
+    with pytest.raises(ValueError, match=f"action_noise: {message}"):
+        MATD3("MlpPolicy", venv, action_noise=noise)
 
 
 @pytest.mark.parametrize("name", ["buffer_size", "batch_size"])

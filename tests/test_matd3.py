@@ -143,3 +143,21 @@ def test_evaluate_loads_each_model_with_the_algorithm_that_saved_it(tmp_path: Pa
     MADDPG("MlpPolicy", matd3.env, buffer_size=10).save(tmp_path / "maddpg.zip")
     assert saved_by(tmp_path / "matd3.zip") is MATD3
     assert saved_by(tmp_path / "maddpg.zip") is MADDPG
+
+
+def test_a_model_of_the_other_algorithm_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture):
+    from cli_testing import fails_with
+    from test_cli import TINY_TRAIN
+
+    matd3 = make_model()
+    matd3.save(tmp_path / "matd3.zip")
+    MADDPG("MlpPolicy", matd3.env, buffer_size=10, device="cpu").save(tmp_path / "maddpg.zip")
+    with pytest.raises(ValueError, match=r"matd3.zip is a MATD3 model .*, not a MADDPG model: load it with MATD3.load"):
+        MADDPG.load(tmp_path / "matd3.zip", device="cpu")
+    with pytest.raises(ValueError, match=r"maddpg.zip is a MADDPG model .*, not a MATD3 model: load it with MADDPG.load"):
+        MATD3.load(tmp_path / "maddpg.zip", env=matd3.env, device="cpu")
+    err = fails_with(["train", "--algo", "matd3", *TINY_TRAIN, "-i", str(tmp_path / "maddpg.zip")], capsys)
+    assert "is a MADDPG model, not a MATD3 one: resume it with --algo maddpg" in err
+    # each loads with its own algorithm
+    assert MATD3.load(tmp_path / "matd3.zip", device="cpu").critic.n_critics == 2
+    assert MADDPG.load(tmp_path / "maddpg.zip", device="cpu").critic.n_critics == 1

@@ -235,3 +235,35 @@ def test_a_file_that_is_not_a_replay_buffer_is_refused(tmp_path: Path) -> None:
     (tmp_path / "broken.pkl").write_bytes(b"\x80\x05garbage")
     with pytest.raises(ValueError, match="broken.pkl is not a replay buffer that can be read here, or is damaged"):
         model.load_replay_buffer(tmp_path / "broken.pkl")
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        (
+            lambda buffer: setattr(buffer, "pos", buffer.buffer_size + 5),
+            r"is damaged: its position pos=1005 is outside its 1000 slots",
+        ),
+        (
+            lambda buffer: setattr(buffer, "rewards", buffer.rewards[:-1]),
+            r"is damaged: its rewards has shape \(999, 1, 2\), but 1000 slots",
+        ),
+        (lambda buffer: setattr(buffer, "dones", buffer.dones[:, :0]), r"is damaged: its dones has shape \(1000, 0\)"),
+        (lambda buffer: buffer.rewards.__setitem__((3, 0, 1), np.nan), r"NaN or infinite rewards \(the first at slot 3\)"),
+        (lambda buffer: buffer.actions.__setitem__((4, 0, 0, 1), np.inf), r"NaN or infinite actions \(the first at slot 4\)"),
+        (lambda buffer: buffer._next_obs_index_host.__setitem__((2, 0), 10**6), "index points outside its"),
+    ],
+    ids=["pos", "rewards_length", "dones_copies", "nan_reward", "inf_action", "next_obs_index"],
+)
+def test_a_damaged_replay_buffer_is_refused_at_load(damage, message, tmp_path: Path) -> None:
+    import pickle
+
+    saved = _model_with_buffer(tiny_env(), tmp_path, "saved")
+    buffer = pickle.loads(saved.read_bytes())
+    damage(buffer)
+    (tmp_path / "damaged.pkl").write_bytes(pickle.dumps(buffer))
+    model = tiny_model(tiny_env())
+    with pytest.raises(ValueError, match=f"the replay buffer .*damaged.pkl .*{message}"):
+        model.load_replay_buffer(tmp_path / "damaged.pkl")
+    model.load_replay_buffer(saved)  # the undamaged buffer loads
+    assert model.replay_buffer is not None and model.replay_buffer.pos == 60

@@ -5,6 +5,7 @@ import collections
 import json
 import os
 import pickle
+import sys
 import zipfile
 from pathlib import Path
 
@@ -12,8 +13,10 @@ import pytest
 import yaml
 from maddpg_test_envs import TargetReachEnv
 
+import sb3_maddpg
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
 from sb3_maddpg.__main__ import main
+from sb3_maddpg.common.model_files import restricted_loads
 from sb3_maddpg.evaluation.report import check_model_fits_env, find_run_config
 
 
@@ -157,3 +160,46 @@ def test_enjoy_refuses_a_run_yaml_that_would_run_code(tmp_path: Path, monkeypatc
         main(["enjoy", "--env", env_id, "-f", "logs", "--no-render", "-n", "5"])
     assert "args.yml is not a run file of plain YAML values" in capsys.readouterr().err
     assert not marker.exists()
+
+
+def _module_that_writes_a_marker(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, relative: str) -> Path:
+    """A module file inside the sb3_maddpg package (by its ``__path__``) whose import creates the file it returns."""
+    marker = tmp_path / "imported"
+    source = tmp_path / "package_files" / relative
+    source.parent.mkdir(parents=True, exist_ok=True)
+    for folder in source.relative_to(tmp_path / "package_files").parents:
+        (tmp_path / "package_files" / folder / "__init__.py").touch()
+    source.write_text(f"open({os.fspath(marker)!r}, 'w').close()\n\nclass Anything:\n    pass\n")
+    monkeypatch.setattr(sb3_maddpg, "__path__", [*sb3_maddpg.__path__, os.fspath(tmp_path / "package_files")])
+    for name in [name for name in sys.modules if name.startswith("sb3_maddpg.writes_a_marker")]:
+        monkeypatch.delitem(sys.modules, name)
+    return marker
+
+
+@pytest.mark.parametrize(
+    ("module", "relative"),
+    [
+        ("sb3_maddpg.writes_a_marker", "writes_a_marker.py"),
+        ("sb3_maddpg.writes_a_marker_package.__main__", "writes_a_marker_package/__main__.py"),
+    ],
+)
+def test_a_module_off_the_list_is_refused_before_it_is_imported(
+    module: str, relative: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    marker = _module_that_writes_a_marker(tmp_path, monkeypatch, relative)
+    payload = f"c{module}\nAnything\n.".encode()  # protocol 0: GLOBAL module name, STOP
+    with pytest.raises(pickle.UnpicklingError, match=f"it refers to {module}.Anything"):
+        restricted_loads(payload)
+    code = {":type:": "<class 'type'>", ":serialized:": base64.b64encode(payload).decode()}
+    crafted = _with_data(_model(tmp_path), tmp_path / "crafted.zip", lambda raw: raw.update(policy_class=code))
+    with pytest.raises(ValueError, match=f"the saved 'policy_class' cannot be read safely: it refers to {module}"):
+        MADDPG.load(crafted, device="cpu")
+    assert not marker.exists() and module not in sys.modules
+
+
+def test_a_module_attribute_that_would_import_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    # numpy's module __getattr__ imports numpy.f2py for this name: only a module's own attributes are looked up
+    monkeypatch.delitem(sys.modules, "numpy.f2py", raising=False)
+    with pytest.raises(pickle.UnpicklingError, match="it refers to numpy.f2py"):
+        restricted_loads(b"cnumpy\nf2py\n.")
+    assert "numpy.f2py" not in sys.modules

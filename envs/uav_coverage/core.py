@@ -28,7 +28,18 @@ from .hazards import HAZARD_COUNTS, crash_drain, gust_push, push_within_walls, s
 from .observations import POSITION_MARKS, ObservationDrawer, uav_values
 from .pois import lattice_pois, load_poi_image, pois_from_image
 from .rewards import REWARD_MODES, cell_entropy, coverage_credit, covering_pairs, energy_cost, report_reward, team_metrics
-from .validation import check_choice, check_int, check_points, check_real, check_zone
+from .validation import (
+    MAX_MAP_SIZE,
+    MAX_OBS_SIZE,
+    MAX_STEPS,
+    MAX_UAVS,
+    check_choice,
+    check_int,
+    check_points,
+    check_real,
+    check_step_memory,
+    check_zone,
+)
 
 __all__ = [
     "ACTION_MODES",
@@ -48,8 +59,9 @@ class UAVCoverageCore:
     """
     Multi-UAV coverage simulation (N UAVs over an L x L area with K points of interest), all UAVs stepped at once.
 
-    :param map_size: L, the area is [0, L)^2 in cell units
-    :param n_uavs: N, number of UAVs
+    :param map_size: L, the area is [0, L)^2 in cell units (at most 1024)
+    :param n_uavs: N, number of UAVs (at most 1024; with the PoIs and the observation images, a step's arrays must fit
+        in 1 GiB each)
     :param pois: ``"grid"`` (the L x L integer lattice), ``"uniform"`` (``n_pois`` points drawn from the seed),
         an array (K, 2) of coordinates, or a grayscale image (path to a PNG/JPEG, or a 2-D array of at least 4 x 4
         pixels; other 2-D arrays are refused as ambiguous)
@@ -66,8 +78,8 @@ class UAVCoverageCore:
     :param comm_penalty: p_c, charged for each step disconnected
     :param entropy_coef: lambda, weight of the spatial entropy of the UAVs in the shared reward
     :param eps: epsilon in denominators; a UAV is depleted when its energy is <= eps * E_max
-    :param max_cycles: T, steps per episode (truncation)
-    :param obs_size: S, observation side in pixels, a positive multiple of L
+    :param max_cycles: T, steps per episode (truncation; at most 10**9)
+    :param obs_size: S, observation side in pixels, a positive multiple of L (at most 4096)
     :param start: ``"fixed"`` (drawn once at the first reset, then reused), ``"random"`` (drawn at every reset) or an
         array (N, 2) of start positions
     :param reward_scale: every agent's reward is multiplied by this
@@ -107,9 +119,10 @@ class UAVCoverageCore:
     :param link_failure_prob: p_f, hazard: the probability that a radio link in range fails at a step, each link on its
         own (0, the default, is no failures); a UAV whose links all fail is disconnected (charged ``comm_penalty``)
     :param crash_ground_steps: k, hazard: a UAV that a gust crashes (or the storm strikes) is grounded for the k steps
-        after the crash (0, the default, is never): it stays where it stopped and does not fly, cover, link or spend
-        energy, its observations and teammates' show it as absent, and then it takes off again from there. A crash's
-        loss is then spread over k steps of lost coverage instead of one step's energy (``crash_energy``)
+        after the crash (0, the default, is never; at most 10**9): it stays where it stopped and does not fly, cover,
+        link or spend energy, its observations and teammates' show it as absent, and then it takes off again from
+        there. A crash's loss is then spread over k steps of lost coverage instead of one step's energy
+        (``crash_energy``)
     :param grounded_penalty: p_d, charged to a grounded UAV at each of its grounded steps (its reward is then
         -``reward_scale`` p_d where a depleted UAV's is 0); needs ``crash_ground_steps`` > 0
     :param show_grounded: if True, a grounded UAV's own observation (and the state) shows its mark with the number of
@@ -166,8 +179,8 @@ class UAVCoverageCore:
         storm_prob: float = 0.0,
     ) -> None:
         # --- configuration, validated where it enters -------------------------------------------------------------
-        self.map_size = check_int("map_size", map_size, 1)
-        self.n_uavs = check_int("n_uavs", n_uavs, 1)
+        self.map_size = check_int("map_size", map_size, 1, MAX_MAP_SIZE)
+        self.n_uavs = check_int("n_uavs", n_uavs, 1, MAX_UAVS)
         self.max_energy = check_real("max_energy", max_energy)
         self.max_distance = check_real("max_distance", max_distance)
         self.move_energy = check_real("move_energy", move_energy)
@@ -183,8 +196,8 @@ class UAVCoverageCore:
         self.comm_penalty = check_real("comm_penalty", comm_penalty, low_inclusive=True)
         self.entropy_coef = check_real("entropy_coef", entropy_coef, low_inclusive=True)
         self.eps = check_real("eps", eps, high=1.0)
-        self.max_cycles = check_int("max_cycles", max_cycles, 1)
-        self.obs_size = check_int("obs_size", obs_size, 1)
+        self.max_cycles = check_int("max_cycles", max_cycles, 1, MAX_STEPS)
+        self.obs_size = check_int("obs_size", obs_size, 1, MAX_OBS_SIZE)
         if self.obs_size % self.map_size != 0:
             raise ValueError(f"obs_size must be a positive multiple of map_size={self.map_size}, got {obs_size!r}")
         self.reward_scale = check_real("reward_scale", reward_scale)
@@ -207,7 +220,7 @@ class UAVCoverageCore:
         self.crash_energy = check_real("crash_energy", crash_energy, low_inclusive=True)
         # p_f < 1: with certain failure there would be no links at all, a comm_range of 0 in disguise
         self.link_failure_prob = check_real("link_failure_prob", link_failure_prob, low_inclusive=True, high=1.0)
-        self.crash_ground_steps = check_int("crash_ground_steps", crash_ground_steps, 0)
+        self.crash_ground_steps = check_int("crash_ground_steps", crash_ground_steps, 0, MAX_STEPS)
         self.grounded_penalty = check_real("grounded_penalty", grounded_penalty, low_inclusive=True)
         if self.grounded_penalty > 0.0 and self.crash_ground_steps == 0:
             raise ValueError(
@@ -233,6 +246,11 @@ class UAVCoverageCore:
         self.hazards = self.gust_prob > 0.0 or self.link_failure_prob > 0.0 or self.storm_prob > 0.0
         #: Channels of an agent's observation: 3, or 4 with the teammate channel.
         self.n_obs_channels = 4 if self.teammate_channel else 3
+        check_step_memory(
+            "observation images (n_uavs x channels x obs_size^2 bytes)",
+            f"n_uavs={self.n_uavs}, obs_size={self.obs_size}",
+            self.n_uavs * self.n_obs_channels * self.obs_size**2,
+        )
         self._images = ObservationDrawer(self.map_size, self.obs_size, self.position_mark)
         #: s, pixels per cell side of the observation images
         self.block = self._images.block
@@ -244,7 +262,7 @@ class UAVCoverageCore:
         if isinstance(pois, str) and pois in ("grid", "uniform"):
             self.pois_mode = pois
             if pois == "uniform":
-                self.n_pois = check_int("n_pois", self.map_size**2 if n_pois is None else n_pois, 1)
+                self.n_pois = check_int("n_pois", self.map_size**2 if n_pois is None else n_pois, 1, MAX_MAP_SIZE**2)
             else:
                 self._set_pois(lattice_pois(self.map_size))
         elif isinstance(pois, str | os.PathLike):
@@ -275,6 +293,12 @@ class UAVCoverageCore:
                 )
         if n_pois is not None and self.pois_mode != "uniform":
             raise ValueError(f"n_pois is only used with pois='uniform', got n_pois={n_pois!r} with pois={self.pois_mode!r}")
+        n_pois_total = self.n_pois if self.pois_mode == "uniform" else self.n_pois_total
+        check_step_memory(
+            "UAV-PoI distances (n_uavs x PoIs x 16 bytes)",
+            f"n_uavs={self.n_uavs} with {n_pois_total} PoIs (pois={self.pois_mode!r}, map_size={self.map_size})",
+            self.n_uavs * int(n_pois_total or 0) * 16,
+        )
 
         # --- start positions ----------------------------------------------------------------------------------------
         self._start_array: np.ndarray | None = None

@@ -18,6 +18,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from pettingzoo.utils.env import AECEnv
 
 from .core import UAVCoverageCore
+from .validation import MAX_STEPS, check_int
 
 __all__ = ["UAVCoverageEnv", "env", "parallel_env", "raw_env"]
 
@@ -91,9 +92,7 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
 
     @max_cycles.setter
     def max_cycles(self, value: int) -> None:
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-            raise ValueError(f"max_cycles must be an integer >= 1, got {value!r}")
-        self.core.max_cycles = int(value)
+        self.core.max_cycles = check_int("max_cycles", value, 1, MAX_STEPS)
 
     def snapshot(self) -> UAVCoverageSnapshot:
         """

@@ -8,18 +8,58 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["MAX_REAL", "MIN_POSITIVE", "check_choice", "check_int", "check_points", "check_real", "check_zone"]
+__all__ = [
+    "MAX_MAP_SIZE",
+    "MAX_OBS_SIZE",
+    "MAX_REAL",
+    "MAX_STEP_BYTES",
+    "MAX_STEPS",
+    "MAX_UAVS",
+    "MIN_POSITIVE",
+    "check_choice",
+    "check_int",
+    "check_points",
+    "check_real",
+    "check_step_memory",
+    "check_zone",
+]
 
 # Bounds of every real parameter: with them, squared ranges, energies times distances, rewards times reward_scale and
 # quotients by eps stay finite and non-zero, so every accepted configuration runs.
 MAX_REAL = 1e12
 MIN_POSITIVE = 1e-12
+# Bounds of the sizes and step counts. A step holds every pair of UAVs, every UAV-PoI distance and every UAV's
+# observation image: with more UAVs or a larger area it needs more memory than a machine has. Step counts stay far
+# inside int64, whose counters (grounded steps left) they are added to.
+MAX_UAVS = 1024
+MAX_MAP_SIZE = 1024
+MAX_OBS_SIZE = 4096
+MAX_STEPS = 10**9
+# What one step's largest arrays (the observation images, the UAV-PoI distances) may take
+MAX_STEP_BYTES = 2**30
 
 
-def check_int(name: str, value: Any, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or int(value) < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+def check_int(name: str, value: Any, minimum: int, maximum: int | None = None) -> int:
+    too_large = maximum is not None and isinstance(value, numbers.Integral) and int(value) > maximum
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or int(value) < minimum or too_large:
+        accepted = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
+        raise ValueError(f"{name} must be an integer {accepted}, got {value!r}")
     return int(value)
+
+
+def check_step_memory(what: str, parameters: str, n_bytes: int) -> None:
+    """
+    Refuse a configuration whose step would hold more than ``MAX_STEP_BYTES`` in one array.
+
+    :param what: the array and how its size is counted, for the message
+    :param parameters: the parameters and values it grows with, for the message
+    :param n_bytes: its size
+    """
+    if n_bytes > MAX_STEP_BYTES:
+        raise ValueError(
+            f"{parameters}: each step would hold {n_bytes / 2**30:.3g} GiB of {what}, more than the {MAX_STEP_BYTES // 2**30} "
+            "GiB accepted; use fewer UAVs or a smaller area or image"
+        )
 
 
 def check_real(

@@ -32,7 +32,13 @@ def check_action_space(action_space: Any, who: str) -> None:
     :param action_space: one agent's action space
     :param who: what checks it, for the message (``"MADDPG"``, ``"MADDPGPolicy"``, ...)
     :raises TypeError: for any space but ``Box`` and ``Discrete``
+    :raises ValueError: for a ``Box`` without entries (the actors would output nothing)
     """
+    if isinstance(action_space, spaces.Box) and action_space.shape is not None and int(np.prod(action_space.shape)) == 0:
+        raise ValueError(
+            f"{who} needs at least one action entry per agent; got the empty action space {action_space} "
+            "(give the agent a Box of shape (n,) with n >= 1)"
+        )
     if isinstance(action_space, SUPPORTED_ACTION_SPACES):
         return
     if isinstance(action_space, spaces.MultiDiscrete):

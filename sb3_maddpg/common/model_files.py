@@ -9,17 +9,23 @@ names. Here they are unpickled only after the file is recognised as a MADDPG mod
 generators, Gymnasium spaces, torch tensors and devices, SB3's and this library's noises, schedules, buffers, policies
 and layers) and refuses every other reference with a ``ValueError``. A function saved by value (a ``lambda`` learning
 rate) is code, so it is refused too: pass it again with ``custom_objects`` (SB3's way to replace saved objects).
+Importing a module runs its code, so a reference is judged by its module's name before anything is imported: only the
+modules of an explicit list are imported, other modules of the same packages are looked up only when already loaded,
+and a ``__main__`` never; a name is looked up among the module's own attributes only.
 """
 
 import base64
+import importlib
 import io
 import json
 import os
 import pathlib
 import pickle
 import pickletools
+import sys
 import zipfile
 import zlib
+from types import ModuleType
 from typing import Any
 
 # Class parameters rebuilt from others by ``_setup_model``: when saved as code, they are not needed
@@ -70,6 +76,66 @@ _BUILTINS = frozenset({"object", "dict", "list", "tuple", "set", "frozenset", "i
 # Packages (and gymnasium.spaces) whose classes may be built, and only classes derived from those of _allowed_bases
 # (a logger or a VecEnv class of the same packages opens files or starts processes when built)
 _CLASS_MODULES = ("numpy", "stable_baselines3", "sb3_maddpg", "sb3_contrib", "rl_zoo3", "torch")
+# The modules of those packages that a pickle may make the unpickler import: importing a module runs its top-level code
+# (a package's ``__main__``, a script), so another module of those packages is looked up only when it is already loaded
+# (then nothing runs), and never imported
+_IMPORTABLE_MODULES = frozenset(
+    {
+        *(module for module, _ in _FUNCTIONS),
+        "numpy",
+        "numpy.dtypes",
+        "numpy.random._generator",
+        "numpy.random._mt19937",
+        "numpy.random._pcg64",
+        "numpy.random._philox",
+        "numpy.random._sfc64",
+        "numpy.random.bit_generator",
+        "numpy.random.mtrand",
+        "torch",
+        "torch.nn.modules.activation",
+        "torch.optim.adam",
+        "torch.optim.adamw",
+        "torch.optim.rmsprop",
+        "torch.optim.sgd",
+        "gymnasium.spaces.box",
+        "gymnasium.spaces.dict",
+        "gymnasium.spaces.discrete",
+        "gymnasium.spaces.multi_binary",
+        "gymnasium.spaces.multi_discrete",
+        "gymnasium.spaces.tuple",
+        "stable_baselines3.common.buffers",
+        "stable_baselines3.common.noise",
+        "stable_baselines3.common.torch_layers",
+        "stable_baselines3.common.type_aliases",
+        "stable_baselines3.common.utils",
+        "rl_zoo3.utils",
+        "sb3_maddpg.common.agent_spaces",
+        "sb3_maddpg.common.buffers",
+        "sb3_maddpg.common.device_buffer",
+        "sb3_maddpg.common.noise",
+        "sb3_maddpg.common.torch_layers",
+        "sb3_maddpg.maddpg.critics",
+        "sb3_maddpg.maddpg.policies",
+        "sb3_maddpg.matd3.policies",
+    }
+)
+
+
+def _class_module(module: str) -> ModuleType | None:
+    """
+    The module a pickle names for a class, if it may be read: one of the packages of ``_CLASS_MODULES`` (or
+    gymnasium.spaces), no ``__main__``, imported only when it is in ``_IMPORTABLE_MODULES`` (else only if already
+    loaded). Decided from the name alone, before anything is imported.
+    """
+    parts = module.split(".")
+    if "__main__" in parts or not (parts[0] in _CLASS_MODULES or module.startswith("gymnasium.spaces")):
+        return None
+    if module in _IMPORTABLE_MODULES:
+        try:
+            return importlib.import_module(module)
+        except ImportError:  # an optional package (rl_zoo3, sb3_contrib) not installed
+            return None
+    return sys.modules.get(module)
 
 
 def _allowed_bases() -> tuple[type, ...]:
@@ -124,11 +190,14 @@ class _RestrictedUnpickler(pickle.Unpickler):
             return _load_storage
         if (module, name) in _FUNCTIONS or (module == "builtins" and name in _BUILTINS):
             return super().find_class(module, name)
-        if module.split(".")[0] in _CLASS_MODULES or module.startswith("gymnasium.spaces"):
+        source = _class_module(module)
+        # The module's own attributes only: a module's __getattr__ may import (numpy.f2py, ...), and a dotted name
+        # reaches into other modules
+        value = vars(source).get(name) if source is not None and "." not in name else None
+        if value is not None:
             import numpy as np
             import torch as th
 
-            value = super().find_class(module, name)
             if isinstance(value, th.dtype) or value is np.ndarray:
                 return value
             if isinstance(value, type) and issubclass(value, _allowed_bases()):

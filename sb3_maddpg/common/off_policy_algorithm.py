@@ -74,6 +74,33 @@ def _first_non_finite(values: np.ndarray) -> str:
     return f"{values[index]} at index {tuple(int(i) for i in index)}"
 
 
+def algorithm_of_policy(policy_class: Any) -> type["MultiAgentOffPolicyAlgorithm"] | None:
+    """
+    The algorithm of this library that saved a model, told by its saved policy class: the algorithm whose
+    ``MlpPolicy`` is the most derived base of that class (``MATD3`` for MATD3's twin-critic policies, ``MADDPG`` for
+    MADDPG's). An algorithm is known once its module is imported, which unpickling its policy class does (the policy
+    module's package imports the algorithm).
+
+    :param policy_class: the model's saved ``policy_class``
+    :return: the algorithm class, or None for a class that is no algorithm's policy
+    """
+    if not isinstance(policy_class, type):
+        return None
+    candidates: list[tuple[type[MultiAgentOffPolicyAlgorithm], type]] = []
+    stack: list[type[MultiAgentOffPolicyAlgorithm]] = [MultiAgentOffPolicyAlgorithm]
+    while stack:
+        algorithm = stack.pop()
+        stack.extend(algorithm.__subclasses__())
+        base = algorithm.policy_aliases.get("MlpPolicy")
+        if base is not None and issubclass(policy_class, base):
+            candidates.append((algorithm, base))
+    if not candidates:
+        return None
+    closest = max((base for _, base in candidates), key=lambda base: len(base.__mro__))
+    # the first algorithm with that policy (MATD3, not a subclass of it)
+    return min((algorithm for algorithm, base in candidates if base is closest), key=lambda algorithm: len(algorithm.__mro__))
+
+
 def contains_callback(callback: BaseCallback, callback_class: type[BaseCallback]) -> bool:
     """Whether ``callback`` is, or holds in a (nested) ``CallbackList``, an instance of ``callback_class``."""
     if isinstance(callback, callback_class):
@@ -781,6 +808,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         # to SB3 as custom_objects, so that SB3's load unpickles none; those that ``kwargs`` replace are not read.
         given = {**{key: value for key, value in kwargs.items() if key != "policy_kwargs"}, **(custom_objects or {})}
         custom_objects = read_maddpg_data(path, None, given)  # type: ignore[arg-type]
+        cls._check_saved_algorithm(custom_objects.get("policy_class"), path)
         try:
             model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
         except READ_ERRORS as error:
@@ -791,6 +819,26 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         if states is not None:
             restore_random_states(model, states)
         return model
+
+    @classmethod
+    def _check_saved_algorithm(cls, policy_class: Any, path: str | pathlib.Path | io.BufferedIOBase) -> None:
+        """
+        Refuse a model saved by another algorithm of this library: a MATD3 model loaded as MADDPG would lose its twin
+        critics' delay and smoothing, a MADDPG model loaded as MATD3 would train on with one critic.
+
+        :param policy_class: the saved policy class
+        :param path: the model file, for the message
+        :raises ValueError: naming both algorithms
+        """
+        saved = algorithm_of_policy(policy_class)
+        if saved is None or saved.policy_aliases.get("MlpPolicy") is cls.policy_aliases.get("MlpPolicy"):
+            return
+        name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the model file"
+        raise ValueError(
+            f"{name} is a {saved.__name__} model (its policy is {policy_class.__module__}.{policy_class.__qualname__}), "
+            f"not a {cls.__name__} model: load it with {saved.__name__}.load (on the command line: "
+            f"--algo {saved.__name__.lower()})"
+        )
 
     def save_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase) -> None:
         """
@@ -803,14 +851,15 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
 
     def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
         """
-        Load a replay buffer saved by ``save_replay_buffer``, after checking that it fits this model: the same agents,
-        observation shape and dtype, and action size. A buffer from another number of environment copies is laid
+        Load a replay buffer saved by ``save_replay_buffer``, after checking that it is whole (its fields agree with
+        each other, its rewards are finite: ``MultiAgentReplayBuffer.check_loaded``) and fits this model: the same
+        agents, observation shape and dtype, and action size. A buffer from another number of environment copies is laid
         out again for this model's copies (``MultiAgentReplayBuffer.with_copies``): every joint transition is kept,
         up to this model's ``buffer_size``.
 
         :param path: the pickle file, or an open binary file
         :param truncate_last_traj: unused (only for SB3's ``HerReplayBuffer``)
-        :raises ValueError: if the buffer does not fit, naming its shapes and the model's
+        :raises ValueError: if the buffer is damaged, or does not fit, naming its shapes and the model's
         """
         name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the replay buffer file"
         try:
@@ -826,6 +875,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         """Check that a loaded buffer fits the model; lay it out for the model's number of copies."""
         if not isinstance(buffer, MultiAgentReplayBuffer):
             raise TypeError(f"{name} holds a {type(buffer).__name__}, not a MultiAgentReplayBuffer of joint transitions")
+        buffer.check_loaded(name)
         assert self.n_agents is not None
         obs_shape, obs_dtype = tuple(self.observation_space.shape), self.observation_space.dtype  # type: ignore[arg-type]
         action_dim = action_width(self.action_space)

@@ -8,6 +8,7 @@ import os
 from numbers import Integral, Real
 from typing import Any
 
+import numpy as np
 import torch as th
 from gymnasium import spaces
 from pettingzoo.utils.env import ParallelEnv
@@ -200,9 +201,7 @@ def check_off_policy_arguments(algorithm: str, arguments: dict[str, Any]) -> Non
     if check_int("gradient_steps", arguments["gradient_steps"], -1) == 0:
         raise ValueError("gradient_steps must be an integer >= 1, or -1 (as many as timesteps collected), got 0 (no update)")
     check_bool("flush_denormals", arguments["flush_denormals"])
-    action_noise = arguments["action_noise"]
-    if action_noise is not None and not isinstance(action_noise, ActionNoise):
-        raise TypeError(f"action_noise must be an SB3 ActionNoise or None, got {action_noise!r}")
+    check_action_noise(arguments["action_noise"])
     replay_buffer_class = arguments["replay_buffer_class"]
     if replay_buffer_class is not None and not (
         isinstance(replay_buffer_class, type) and issubclass(replay_buffer_class, MultiAgentReplayBuffer)
@@ -229,6 +228,42 @@ def check_off_policy_arguments(algorithm: str, arguments: dict[str, Any]) -> Non
             th.device(device)
         except RuntimeError as error:
             raise ValueError(f"device must be 'auto', 'cpu', 'cuda', 'cuda:N' or a torch.device, got {device!r}") from error
+
+
+# The parameters of SB3's noises (NormalActionNoise, OrnsteinUhlenbeckActionNoise) and DecayingGaussianNoise: attribute ->
+# (argument name, whether it must be >= 0)
+_NOISE_PARAMETERS = {
+    "_mu": ("mean", False),
+    "_sigma": ("sigma", True),
+    "_final_sigma": ("final_sigma", True),
+    "_theta": ("theta", True),
+    "_dt": ("dt", True),
+}
+
+
+def check_action_noise(action_noise: Any) -> None:
+    """
+    ``action_noise``: None or an SB3 ``ActionNoise`` whose parameters are finite, its standard deviations >= 0 (NumPy
+    would only refuse a negative sigma at the first noisy step, and a NaN one would make every action NaN).
+
+    :param action_noise: the value given (a ``VectorizedActionNoise``: each row's noise is checked)
+    """
+    if action_noise is None:
+        return
+    if not isinstance(action_noise, ActionNoise):
+        raise TypeError(f"action_noise must be an SB3 ActionNoise or None, got {action_noise!r}")
+    for noise in getattr(action_noise, "noises", None) or [action_noise]:
+        for attribute, (name, non_negative) in _NOISE_PARAMETERS.items():
+            if not hasattr(noise, attribute):
+                continue
+            value = getattr(noise, attribute)
+            try:
+                values = np.asarray(value, dtype=np.float64)
+            except (TypeError, ValueError):
+                values = np.asarray(np.nan)
+            if not np.isfinite(values).all() or (non_negative and (values < 0).any()):
+                accepted = "finite numbers >= 0" if non_negative else "finite numbers"
+                raise ValueError(f"action_noise: {type(noise).__name__}'s {name} must be {accepted}, got {value!r}")
 
 
 def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
@@ -261,9 +296,7 @@ def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
             f"mean_anchored_quantiles is an argument of {algorithm} (it sets the loss and the critics' mean head), "
             f"not a policy kwarg: use {algorithm}(..., mean_anchored_quantiles=True)"
         )
-    actor_reg = arguments["actor_reg"]
-    if isinstance(actor_reg, bool) or not isinstance(actor_reg, int | float) or not actor_reg >= 0.0:
-        raise ValueError(f"actor_reg must be a number >= 0 (0 turns the penalty off), got {actor_reg!r}")
+    check_number("actor_reg (0 turns the penalty off)", arguments["actor_reg"], 0.0)
     check_number(
         "gumbel_temperature (the Gumbel-softmax temperature, default 1.0)", arguments["gumbel_temperature"], 0.0, low_open=True
     )

@@ -236,6 +236,10 @@ def _save_state_array(state: np.ndarray, path: Path, scale: int = 4) -> None:
 # ---------------------------------------------------------------------------------------------------------------------
 # Training logs
 # ---------------------------------------------------------------------------------------------------------------------
+class NotAMonitorFileError(ValueError):
+    """A file given or found as a ``monitor.csv`` is not a text CSV file."""
+
+
 def find_monitor_files(log_path: str | os.PathLike) -> list[Path]:
     """
     :param log_path: a ``monitor.csv`` file, or a folder searched recursively (e.g. an RL Zoo run folder)
@@ -256,21 +260,27 @@ def load_monitor_series(monitor_file: str | os.PathLike) -> Series:
     :return: column name -> values; empty cells (envs without a metric) are NaN. Lines that are not one number (or
         an empty cell) per column, e.g. two runs' lines interleaved in one file, are skipped with a warning saying how
         many.
+    :raises NotAMonitorFileError: if the file is not a text CSV file (a model .zip, a binary file)
     """
-    with open(monitor_file, newline="") as file:
-        first = file.readline()
-        if not first.startswith("#"):
-            file.seek(0)
-        reader = csv.reader(file)
-        header = next(reader, None)
-        rows, skipped = [], 0
-        for line in reader:
-            try:
-                if len(line) != len(header or []):
-                    raise ValueError(f"{len(line)} fields")
-                rows.append([float(cell) if cell != "" else np.nan for cell in line])
-            except ValueError:
-                skipped += 1
+    try:
+        with open(monitor_file, newline="", encoding="utf-8") as file:
+            first = file.readline()
+            if not first.startswith("#"):
+                file.seek(0)
+            reader = csv.reader(file)
+            header = next(reader, None)
+            rows, skipped = [], 0
+            for line in reader:
+                try:
+                    if len(line) != len(header or []):
+                        raise ValueError(f"{len(line)} fields")
+                    rows.append([float(cell) if cell != "" else np.nan for cell in line])
+                except ValueError:
+                    skipped += 1
+    except (UnicodeDecodeError, csv.Error) as error:
+        raise NotAMonitorFileError(
+            f"{os.fspath(monitor_file)} is not a monitor.csv (a text CSV file written during training): {error}"
+        ) from error
     if skipped:
         total = skipped + len(rows)
         warnings.warn(f"{monitor_file}: skipped {skipped} malformed line(s) of {total} (not one number per column)")
@@ -336,6 +346,7 @@ def plot_training_logs(
     :param name: series label
     :return: the paths written
     :raises FileNotFoundError: if no log with the metrics is found
+    :raises NotAMonitorFileError: if a monitor file found is not a text CSV file
     """
     out = Path(out_dir)
     series: Series = {}

@@ -3,6 +3,7 @@
 import os
 import re
 from collections.abc import Sequence
+from numbers import Integral
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,10 @@ DEFAULT_ENV_ID = "uav_coverage_v0"
 
 class ModelEnvMismatchError(ValueError):
     """The model file cannot be loaded, or it was trained for another number of agents or other observations."""
+
+
+class OpponentEnvMismatchError(ModelEnvMismatchError):
+    """The same, for the opponent's model file (``evaluate --opponent``)."""
 
 
 class RunFileLoader(yaml.SafeLoader):
@@ -111,15 +116,41 @@ def find_run_config(model_path: str | os.PathLike) -> tuple[str | None, dict[str
 def saved_algorithm(policy_class: Any) -> type:
     """
     The library's algorithm that saved a model, told by its saved policy class (``read_maddpg_data`` reads it without
-    unpickling code): ``MATD3`` for MATD3's twin-critic policies, ``MADDPG`` otherwise.
+    unpickling code; see ``algorithm_of_policy``): ``MATD3`` for MATD3's twin-critic policies, ``MADDPG`` otherwise.
 
     :param policy_class: the model's saved ``policy_class``
     :return: the algorithm class to load it with
     """
-    from sb3_maddpg import MADDPG, MATD3
-    from sb3_maddpg.matd3.policies import MATD3Policy
+    from sb3_maddpg import MADDPG
+    from sb3_maddpg.common.off_policy_algorithm import algorithm_of_policy
 
-    return MATD3 if isinstance(policy_class, type) and issubclass(policy_class, MATD3Policy) else MADDPG
+    return algorithm_of_policy(policy_class) or MADDPG
+
+
+def episode_limit(env: Any) -> int | None:
+    """
+    :param env: a multi-agent env (PettingZoo ParallelEnv)
+    :return: the most steps an episode has (the UAV envs' and MPE's ``max_cycles``), or None if the env does not say
+    """
+    core = getattr(env, "core", None)
+    return int(core.max_cycles) if core is not None else getattr(env.unwrapped, "max_cycles", None)
+
+
+def check_state_steps(state_steps: Sequence[int] | None, max_cycles: int | None) -> None:
+    """
+    Refuse steps of the recorded episode that no episode has (they would silently give no image).
+
+    :param state_steps: the steps asked for (None: the default)
+    :param max_cycles: the most steps an episode has (None: unknown, then only negative steps are refused)
+    :raises ValueError: naming the steps refused and the range accepted
+    """
+    if state_steps is None:
+        return
+    last = max_cycles if max_cycles is not None else float("inf")
+    bad = [step for step in state_steps if isinstance(step, bool) or not isinstance(step, Integral) or not 0 <= step <= last]
+    if bad:
+        accepted = "integers >= 0" if max_cycles is None else f"integers from 0 (after reset) to {max_cycles} (max_cycles)"
+        raise ValueError(f"state steps must be steps of the episode, {accepted}; got {bad}")
 
 
 def check_model_fits_env(model_path: str | os.PathLike, env_id: str, env_kwargs: dict[str, Any]) -> dict[str, Any]:
@@ -213,6 +244,7 @@ def evaluate_and_report(
         the same opponent. None: the model acts for every agent
     :param opponent: with ``team``: ``"random"``, or a saved model (.zip) that acts for the other agents
     :return: ``summary``, ``results``, ``table``, ``files`` (name -> path) and ``env_kwargs``
+    :raises ModelEnvMismatchError: if the model does not fit the env (``OpponentEnvMismatchError``: the opponent)
     """
     from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
 
@@ -227,8 +259,9 @@ def evaluate_and_report(
     probe = make_multiagent_env(env_id, **kwargs)
     core = getattr(probe, "core", None)
     render_mode = "rgb_array" if "rgb_array" in probe.metadata.get("render_modes", []) else None
-    max_cycles = int(core.max_cycles) if core is not None else getattr(probe.unwrapped, "max_cycles", None)
+    max_cycles = episode_limit(probe)
     probe.close()
+    check_state_steps(state_steps, max_cycles)
     if core is not None:
         # The UAV envs: new start positions every episode unless asked otherwise
         kwargs = {**run_env_kwargs, "start": "random", **(env_kwargs or {})}
@@ -242,7 +275,12 @@ def evaluate_and_report(
     if team is not None:
         if not controllers:
             raise ValueError("team= needs a model to act for the team")
-        rival = RandomController() if os.fspath(opponent) == "random" else _load_controller(opponent, env_id, kwargs, device)
+        try:
+            rival = (
+                RandomController() if os.fspath(opponent) == "random" else _load_controller(opponent, env_id, kwargs, device)
+            )
+        except ModelEnvMismatchError as error:
+            raise OpponentEnvMismatchError(str(error)) from error
         own = controllers.pop()
         controllers = [
             TeamController(team, own, rival),

@@ -258,8 +258,10 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         from huggingface_sb3 import EnvironmentName
         from rl_zoo3.utils import get_model_path
 
+        from sb3_maddpg.zoo.run_files import check_run_folder
+
         try:
-            _, model_path, _ = get_model_path(
+            _, model_path, log_path = get_model_path(
                 args.exp_id,
                 args.folder,
                 args.algo,
@@ -270,6 +272,9 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
             )
         except (AssertionError, ValueError) as error:
             raise UsageError(f"no trained model to load: {error} (train one first, or pass -f LOG_FOLDER)") from error
+        # RL Zoo reads the run's config.yml and args.yml with YAML's unsafe loader, evaluates a normalize string, imports
+        # the wrappers they name and unpickles vecnormalize.pkl: each is checked first (every layout, --exp-id -1 too)
+        check_run_folder(os.path.join(log_path, str(EnvironmentName(args.env))))
         if args.algo in MULTIAGENT_ALGOS and is_multiagent_env(args.env):
             _check_model_fits_env(model_path, args.env, env_kwargs)
         return argv

@@ -5,6 +5,7 @@ import collections
 import json
 import os
 import pickle
+import re
 import sys
 import zipfile
 from pathlib import Path
@@ -203,3 +204,90 @@ def test_a_module_attribute_that_would_import_is_refused(monkeypatch: pytest.Mon
     with pytest.raises(pickle.UnpicklingError, match="it refers to numpy.f2py"):
         restricted_loads(b"cnumpy\nf2py\n.")
     assert "numpy.f2py" not in sys.modules
+
+
+ENV = "uav_coverage_fast_v0"
+TINY = ["--env", ENV, "--env-kwargs", "obs_size:16", "max_cycles:10", "n_uavs:2", "--seed", "0", "--eval-freq", "-1"]
+TINY += ["-params", "learning_starts:20", "train_freq:10", "policy_kwargs:dict(n_quantiles=4, net_arch=[16])"]
+
+
+def _writes(marker: Path) -> str:
+    """A Python expression that creates ``marker`` when it is evaluated, and is a dict (what RL Zoo expects)."""
+    return f"open({os.fspath(marker)!r}, 'w').close() or dict()"
+
+
+def _enjoy_fails(tmp_path: Path, capsys: pytest.CaptureFixture, *extra: str) -> str:
+    with pytest.raises(SystemExit):
+        main(["enjoy", "--env", ENV, "-f", "logs", "--no-render", "-n", "5", *extra])
+    return capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("layout", "config", "message"),
+    [
+        ("run", "normalize: {expression!r}\n", "normalize: .* is not read: it is an expression"),
+        ("no-args", "!!python/object/apply:os.mkdir [{marker!r}]\n", "config.yml is not a run file of plain YAML values"),
+        ("exp-id-1", "normalize: {expression!r}\n", "normalize: .* is not read: it is an expression"),
+        ("run", "vec_env_wrapper: writes_a_marker_module.Wrapper\n", "--gym-packages writes_a_marker_module"),
+    ],
+    ids=["normalize-string", "config-without-args", "exp-id-minus-1", "wrapper-module"],
+)
+def test_enjoy_checks_every_run_file_rl_zoo_reads(
+    layout: str, config: str, message: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    # a module whose import would create the marker: a wrapper may name only modules already loaded
+    (tmp_path / "writes_a_marker_module.py").write_text(f"open({os.fspath(marker)!r}, 'w').close()\nWrapper = dict\n")
+    monkeypatch.syspath_prepend(os.fspath(tmp_path))
+    algo_folder = tmp_path / "logs" / "maddpg"
+    run = algo_folder if layout == "exp-id-1" else algo_folder / f"{ENV}_1"
+    (run / ENV).mkdir(parents=True)
+    (run / ENV / "config.yml").write_text(config.format(expression=_writes(marker), marker=os.fspath(marker)))
+    if layout == "run":
+        (run / ENV / "args.yml").write_text(f"env: {ENV}\nenv_kwargs: null\n")
+    _model(tmp_path).rename(run / f"{ENV}.zip")
+    extra = ["--exp-id", "-1"] if layout == "exp-id-1" else []
+    assert re.search(message, _enjoy_fails(tmp_path, capsys, *extra))
+    assert not marker.exists() and "writes_a_marker_module" not in sys.modules
+
+
+def test_enjoy_reads_vecnormalize_pkl_without_running_code(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    run = _run_folder(tmp_path / "logs" / "maddpg", ENV, f"env: {ENV}\nenv_kwargs: null\n", config="normalize: true\n")
+    (run / ENV / "vecnormalize.pkl").write_bytes(pickle.dumps(_RunsCode(marker)))
+    _model(tmp_path).rename(run / f"{ENV}.zip")
+    assert "vecnormalize.pkl cannot be read safely, it is not read: it refers to" in _enjoy_fails(tmp_path, capsys)
+    assert not marker.exists()
+
+
+def test_vecnormalize_statistics_are_read_by_the_restricted_unpickler(tmp_path: Path) -> None:
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from sb3_maddpg.zoo.run_files import load_vec_normalize
+
+    env = make_multiagent_vec_env(lambda **kwargs: TargetReachEnv(), n_envs=1)
+    statistics = VecNormalize(env)
+    statistics.reset()
+    statistics.save(tmp_path / "vecnormalize.pkl")
+    loaded = load_vec_normalize(tmp_path / "vecnormalize.pkl", env)
+    assert loaded.venv is env and loaded.obs_rms.mean.shape == statistics.obs_rms.mean.shape
+    (tmp_path / "list.pkl").write_bytes(pickle.dumps([1, 2]))
+    with pytest.raises(ValueError, match="does not hold VecNormalize statistics"):
+        load_vec_normalize(tmp_path / "list.pkl")
+
+
+def test_train_i_reads_the_runs_vecnormalize_pkl_without_running_code(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", *TINY, "-n", "20"]) == 0
+    run = tmp_path / "logs" / "maddpg" / f"{ENV}_1"
+    marker = tmp_path / "ran"
+    (run / ENV / "vecnormalize.pkl").write_bytes(pickle.dumps(_RunsCode(marker)))
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["train", *TINY, "-n", "20", "-i", os.fspath(run / f"{ENV}.zip")])
+    assert "vecnormalize.pkl cannot be read safely, it is not read" in capsys.readouterr().err
+    assert not marker.exists()

@@ -8,7 +8,8 @@ import shutil
 import socket
 import warnings
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from copy import deepcopy
 from typing import Any
 
@@ -20,13 +21,14 @@ from rl_zoo3.hyperparams_opt import HYPERPARAMS_CONVERTER
 from rl_zoo3.utils import ALGOS, get_wrapper_class
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
-from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecFrameStack, VecNormalize
+from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecFrameStack
 
 from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
 from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
+from sb3_maddpg.zoo.run_files import load_vec_normalize, read_as_data
 from sb3_maddpg.zoo.storage import (
     HEARTBEAT_GRACE_S,
     HEARTBEAT_INTERVAL_S,
@@ -237,7 +239,8 @@ class MultiAgentExperimentManager(ExperimentManager):
             raise UsageError(f"--trial-id {trial_id}: the {where} has {shown}")
         params = study.trials[numbers.index(trial_id)].params
         print(f"Loading the hyperparameters of trial {trial_id} of {where}")
-        return HYPERPARAMS_CONVERTER[self.algo](params)
+        # A study may come from someone else (a shared database): its parameters are data, never code RL Zoo evaluates
+        return read_as_data(HYPERPARAMS_CONVERTER[self.algo](params), f"trial {trial_id} of the {where}")
 
     def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
         # The --storage password is not written into args.yml (command.txt gets the masked command line, see run_train)
@@ -344,6 +347,21 @@ class MultiAgentExperimentManager(ExperimentManager):
                 f"An env worker process ended ({type(error).__name__}: {error}): training stopped at timestep "
                 f"{model.num_timesteps}; the model is saved"
             )
+
+    def _maybe_normalize(self, env: VecEnv, eval_env: bool) -> VecEnv:
+        # RL Zoo unpickles <folder of -i>/<env>/vecnormalize.pkl (also without -i: ./<env>/vecnormalize.pkl); here it is
+        # read with the restricted unpickler, and only beside the model given with -i
+        path = os.path.join(os.path.dirname(self.trained_agent), str(self.env_name), "vecnormalize.pkl")
+        if not (self.trained_agent and os.path.exists(path)):
+            with _no_saved_statistics(self):
+                return super()._maybe_normalize(env, eval_env)
+        print("Loading saved VecNormalize stats")
+        env = load_vec_normalize(path, env)
+        if eval_env:
+            # Deactivate training and reward normalization
+            env.training = False
+            env.norm_reward = False
+        return env
 
     def save_trained_model(self, model: BaseAlgorithm) -> None:
         # As RL Zoo's, with every file written atomically (MADDPG's own saves are; other algorithms' are made so here)
@@ -496,6 +514,21 @@ class MultiAgentExperimentManager(ExperimentManager):
         )
 
 
+@contextmanager
+def _no_saved_statistics(manager: ExperimentManager) -> Iterator[None]:
+    """
+    RL Zoo's ``_maybe_normalize`` looks for saved statistics beside ``trained_agent`` (beside ``""``: in the current
+    folder): it sees ``os.devnull`` instead, a file with no statistics beside it, while it runs.
+
+    :param manager: the experiment manager
+    """
+    trained_agent, manager.trained_agent = manager.trained_agent, os.devnull
+    try:
+        yield
+    finally:
+        manager.trained_agent = trained_agent
+
+
 class _ContinuedLearning:
     """
     The model as RL Zoo's ``ExperimentManager.learn`` sees it when a run is resumed: ``learn`` continues the model's
@@ -610,7 +643,7 @@ def create_multiagent_test_env(
         path = os.path.join(stats_path, "vecnormalize.pkl")
         if not os.path.exists(path):
             raise UsageError(f"VecNormalize statistics {path} not found")
-        venv = VecNormalize.load(path, venv)
+        venv = load_vec_normalize(path, venv)
         venv.training = False
         venv.norm_reward = False
         return venv

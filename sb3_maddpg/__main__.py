@@ -122,6 +122,7 @@ def _zoo_preparser(command: str) -> argparse.ArgumentParser:
         parser.add_argument("-f", "--log-folder", default="logs")
         parser.add_argument("--storage")
         parser.add_argument("--study-name")
+        parser.add_argument("--safe-config", action="store_true")
     return parser
 
 
@@ -153,10 +154,22 @@ def _check_env(env_id: str, algo: str) -> None:
         )
 
 
-def _check_config(config: str, env_id: str) -> None:
+def _check_config(config: str, env_id: str, safe: bool = False) -> None:
+    """
+    The ``-conf`` file: it exists and has an entry for the env.
+
+    :param config: the file
+    :param env_id: the env trained
+    :param safe: ``--safe-config``: the file must be YAML, and the entry values only (no expression RL Zoo would
+        evaluate, no wrapper or callback from a module not loaded; see ``sb3_maddpg.zoo.run_files.read_as_data``)
+    """
+    from sb3_maddpg.zoo.run_files import read_as_data
+
     if not os.path.isfile(config):
         raise UsageError(f"config file {config} not found")
     if not config.endswith((".yml", ".yaml")):
+        if safe:
+            raise UsageError(f"--safe-config reads YAML files only: -conf {config} would be run as Python")
         return
     try:
         with open(config) as file:
@@ -167,6 +180,9 @@ def _check_config(config: str, env_id: str) -> None:
         raise UsageError(f"{config} must map env ids to hyperparameter entries")
     if env_id not in entries and "default" not in entries:
         raise UsageError(f"{config} has no entry for {env_id!r}; its entries: {', '.join(map(str, entries))}")
+    name = env_id if env_id in entries else "default"
+    if safe and isinstance(entries[name], dict):
+        read_as_data(entries[name], f"the entry {name!r} of {config} (--safe-config)")
 
 
 def _check_writable(folder: str, flag: str) -> None:
@@ -232,7 +248,8 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     argv = list(argv)
     if _has_flag(argv, "-h", "--help"):
         # RL Zoo's help follows, with RL Zoo's own defaults for --algo and --env
-        print(f"{PROG} {command}: {DEFAULTS_HELP}; RL Zoo's options follow.\n")
+        safe = "" if command in PLAY_COMMANDS else "; --safe-config: the -conf entry must hold values only, no code"
+        print(f"{PROG} {command}: {DEFAULTS_HELP}{safe}; RL Zoo's options follow.\n")
         return argv
     args, _ = _zoo_preparser(command).parse_known_args(argv)
     _import_gym_packages(args.gym_packages)
@@ -296,7 +313,9 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         config = _default_config(args.algo)
         argv += ["-conf", config]
     if config is not None:
-        _check_config(config, args.env)
+        _check_config(config, args.env, safe=args.safe_config)
+    # The library's own flag: RL Zoo's parser does not know it
+    argv = [arg for arg in argv if arg != "--safe-config"]
     if args.trained_agent and not (args.trained_agent.endswith(".zip") and os.path.isfile(args.trained_agent)):
         raise UsageError(f"--trained-agent: {args.trained_agent} is not an existing .zip model file")
     if args.trained_agent and args.algo in MULTIAGENT_ALGOS:

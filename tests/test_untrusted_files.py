@@ -291,3 +291,44 @@ def test_train_i_reads_the_runs_vecnormalize_pkl_without_running_code(
         main(["train", *TINY, "-n", "20", "-i", os.fspath(run / f"{ENV}.zip")])
     assert "vecnormalize.pkl cannot be read safely, it is not read" in capsys.readouterr().err
     assert not marker.exists()
+
+
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ("  policy_kwargs: {expression!r}\n", "policy_kwargs: .* is not read: it is an expression, and only values"),
+        ("  normalize: {expression!r}\n", "normalize: .* is not read: it is an expression"),
+        ("  callback: writes_a_marker_module.Callback\n", "callback: .*--gym-packages writes_a_marker_module"),
+    ],
+    ids=["policy_kwargs", "normalize", "callback"],
+)
+def test_safe_config_refuses_code_in_the_entry(
+    entry: str, message: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    from cli_testing import fails_with
+
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    (tmp_path / "writes_a_marker_module.py").write_text(f"open({os.fspath(marker)!r}, 'w').close()\nCallback = dict\n")
+    monkeypatch.syspath_prepend(os.fspath(tmp_path))
+    config = tmp_path / "shared.yml"
+    config.write_text(f"{ENV}:\n  n_timesteps: 100\n" + entry.format(expression=_writes(marker)))
+    err = fails_with(["train", *TINY, "-n", "20", "-conf", os.fspath(config), "--safe-config"], capsys)
+    assert re.search(message, err) and "(--safe-config)" in err
+    assert not marker.exists() and "writes_a_marker_module" not in sys.modules
+
+
+def test_safe_config_reads_yaml_values_only(tmp_path: Path, capsys) -> None:
+    from cli_testing import fails_with
+
+    from sb3_maddpg.__main__ import _check_config, packaged_config, prepare_zoo_argv
+
+    # the packaged files hold values only (their policy_kwargs strings are dict(...) of literals)
+    for algo in ("maddpg", "matd3"):
+        config = os.fspath(packaged_config(algo))
+        for env_id in yaml.safe_load(Path(config).read_text()):
+            _check_config(config, env_id, safe=True)
+    assert "--safe-config" not in prepare_zoo_argv("train", ["--env", ENV, "--safe-config"])
+    (tmp_path / "hyperparams.py").write_text("hyperparams = {}\n")
+    err = fails_with(["train", "--env", ENV, "-conf", os.fspath(tmp_path / "hyperparams.py"), "--safe-config"], capsys)
+    assert "--safe-config reads YAML files only" in err

@@ -163,6 +163,7 @@ def _check_config(config: str, env_id: str, safe: bool = False) -> None:
     :param safe: ``--safe-config``: the file must be YAML, and the entry values only (no expression RL Zoo would
         evaluate, no wrapper or callback from a module not loaded; see ``sb3_maddpg.zoo.run_files.read_as_data``)
     """
+    from sb3_maddpg.evaluation.report import BoundedSafeLoader
     from sb3_maddpg.zoo.run_files import read_as_data
 
     if not os.path.isfile(config):
@@ -173,8 +174,8 @@ def _check_config(config: str, env_id: str, safe: bool = False) -> None:
         return
     try:
         with open(config) as file:
-            entries = yaml.safe_load(file) or {}
-    except yaml.YAMLError as error:
+            entries = yaml.load(file, Loader=BoundedSafeLoader) or {}  # noqa: S506 (a safe loader)
+    except (yaml.YAMLError, RecursionError) as error:
         raise UsageError(f"cannot read {config}: {error}".replace("\n", " ")) from error
     if not isinstance(entries, dict):
         raise UsageError(f"{config} must map env ids to hyperparameter entries")

@@ -332,3 +332,38 @@ def test_safe_config_reads_yaml_values_only(tmp_path: Path, capsys) -> None:
     (tmp_path / "hyperparams.py").write_text("hyperparams = {}\n")
     err = fails_with(["train", "--env", ENV, "-conf", os.fspath(tmp_path / "hyperparams.py"), "--safe-config"], capsys)
     assert "--safe-config reads YAML files only" in err
+
+
+def _alias_bomb(levels: int = 8) -> str:
+    """A YAML file of nested aliases, 10**levels values once expanded (about 1.9 KB for 8 levels)."""
+    lines = ["env: uav_coverage_fast_v0", "l0: &l0 [x, x, x, x, x, x, x, x, x, x]"]
+    lines += [f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 10)}]" for i in range(1, levels + 1)]
+    return "\n".join(lines) + "\n"
+
+
+def test_yaml_aliases_are_bounded(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    import time
+
+    from cli_testing import fails_with
+
+    from sb3_maddpg.evaluation.report import MAX_YAML_VALUES, read_run_yaml
+
+    run = _run_folder(tmp_path, ENV, _alias_bomb())
+    _model(tmp_path).rename(run / f"{ENV}.zip")
+    started = time.perf_counter()
+    err = fails_with(["evaluate", "--model", os.fspath(run / f"{ENV}.zip"), "--out", os.fspath(tmp_path / "out")], capsys)
+    assert (
+        f"args.yml is not a run file of plain YAML values, it is not read: its aliases expand to more than {MAX_YAML_VALUES}"
+        in err
+    )
+    assert time.perf_counter() - started < 5
+    (tmp_path / "recursive.yml").write_text("a: &a [1, *a]\n")
+    with pytest.raises(ValueError, match="a recursive alias"):
+        read_run_yaml(tmp_path / "recursive.yml")
+    # a -conf file too, and an ordinary file with aliases is read
+    (tmp_path / "bomb.yml").write_text(_alias_bomb() + f"{ENV}: {{n_timesteps: 10, big: *l8}}\n")
+    assert "aliases expand to more than" in fails_with(
+        ["train", "--env", ENV, "-conf", os.fspath(tmp_path / "bomb.yml")], capsys
+    )
+    (tmp_path / "small.yml").write_text(_alias_bomb(2))
+    assert len(read_run_yaml(tmp_path / "small.yml")["l2"]) == 10

@@ -23,7 +23,7 @@ from typing import Any, NoReturn
 
 import yaml
 
-from sb3_maddpg.zoo.registry import UsageError, check_env_kwargs
+from sb3_maddpg.zoo.registry import TrainingStopped, UsageError, check_env_kwargs
 
 PROG = "sb3_maddpg"
 ZOO_COMMANDS = ("train", "optimize", "enjoy", "record-video")
@@ -627,7 +627,8 @@ def main(argv: list[str] | None = None) -> int:
     Entry point of ``python -m sb3_maddpg`` and of the ``sb3_maddpg`` console script.
 
     :param argv: arguments (default: ``sys.argv[1:]``)
-    :return: exit status 0; errors exit through ``SystemExit`` with status 2
+    :return: exit status 0; ``train`` and ``optimize`` stopped by SIGTERM 143 and by an env worker process that ended 3,
+        after the final save; errors exit through ``SystemExit`` with status 2
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
@@ -649,6 +650,9 @@ def main(argv: list[str] | None = None) -> int:
         else:
             parser.print_help(sys.stderr)
             return 2
+    except TrainingStopped as stopped:
+        sys.stderr.write(f"{PROG} {command}: {stopped}\n")
+        return stopped.exit_status
     except UsageError as error:
         _fail(command if command in (*ZOO_COMMANDS, "evaluate", "plot", "select-checkpoint") else None, str(error))
     return 0

@@ -143,3 +143,25 @@ def test_a_trials_parameters_are_read_as_data(tmp_path: Path, monkeypatch: pytes
     # what RL Zoo's entries hold is read as the data it stands for
     read = read_as_data({"policy_kwargs": "dict(net_arch=[64, -1], activation_fn=nn.ReLU, n={'a': (1.5, None)})"}, "x")
     assert read["policy_kwargs"] == {"net_arch": [64, -1], "activation_fn": torch.nn.ReLU, "n": {"a": (1.5, None)}}
+
+
+def test_sigterm_during_the_first_trial_ends_with_the_report(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    import os
+    import signal
+
+    from rl_zoo3.exp_manager import ExperimentManager
+
+    monkeypatch.chdir(tmp_path)
+
+    def terminated(self, trial):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # the handler interrupts this
+        raise AssertionError("SIGTERM was not handled")
+
+    monkeypatch.setattr(ExperimentManager, "objective", terminated)
+    url = f"sqlite:///{tmp_path / 'optuna.db'}"
+    argv = ["optimize", *TINY, "-n", "10", "--n-trials", "2", "--storage", url, "--study-name", "stopped"]
+    assert main(argv) == 143
+    out, err = capsys.readouterr()
+    assert "No trial of the study 'stopped' has completed yet" in out and "trial 0: FAIL" in out, out
+    assert "stopped by SIGTERM" in err and "Traceback" not in err

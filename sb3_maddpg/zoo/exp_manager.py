@@ -27,7 +27,14 @@ from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
 from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
-from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
+from sb3_maddpg.zoo.registry import (
+    EXIT_ENV_WORKER_ENDED,
+    MULTIAGENT_ENVS,
+    TrainingStopped,
+    UsageError,
+    check_env_kwargs,
+    is_multiagent_env,
+)
 from sb3_maddpg.zoo.run_files import load_vec_normalize, read_as_data
 from sb3_maddpg.zoo.storage import (
     HEARTBEAT_GRACE_S,
@@ -192,6 +199,8 @@ class MultiAgentExperimentManager(ExperimentManager):
         super().__init__(*args, **kwargs)
         # The Optuna trials this process has run (a shared study also holds other workers')
         self._worker_trials: list[Any] = []
+        # Why training stopped before its end (an env worker process that ended), once the model is saved
+        self._stopped: str | None = None
         if self.optimize_hyperparameters and self.n_jobs > 1:
             # Optuna would run the trials as threads of this one manager, which holds each trial's state
             # (hyperparameters, action noise, envs) in its attributes: the trials would overwrite each other's.
@@ -342,11 +351,13 @@ class MultiAgentExperimentManager(ExperimentManager):
         try:
             super().learn(_ContinuedLearning(model) if self.continue_training else model)  # type: ignore[arg-type]
         except (EOFError, ConnectionError) as error:
-            # An env worker process ended (killed, out of memory): stop as Ctrl-C does, and save what was learnt
-            print(
+            # An env worker process ended (killed, out of memory): stop as Ctrl-C does, save what was learnt (RL Zoo's
+            # save_trained_model follows), then end with EXIT_ENV_WORKER_ENDED
+            self._stopped = (
                 f"An env worker process ended ({type(error).__name__}: {error}): training stopped at timestep "
                 f"{model.num_timesteps}; the model is saved"
             )
+            print(self._stopped)
 
     def _maybe_normalize(self, env: VecEnv, eval_env: bool) -> VecEnv:
         # RL Zoo unpickles <folder of -i>/<env>/vecnormalize.pkl (also without -i: ./<env>/vecnormalize.pkl); here it is
@@ -375,6 +386,8 @@ class MultiAgentExperimentManager(ExperimentManager):
             vec_normalize = model.get_vec_normalize_env()
             assert vec_normalize is not None
             atomic_save(lambda file: pickle.dump(vec_normalize, file), os.path.join(self.params_path, "vecnormalize.pkl"))
+        if self._stopped is not None:
+            raise TrainingStopped(self._stopped, EXIT_ENV_WORKER_ENDED)
 
     def _preprocess_hyperparams(
         self, hyperparams: dict[str, Any]
@@ -442,8 +455,10 @@ class MultiAgentExperimentManager(ExperimentManager):
         try:
             super().hyperparameters_optimization()
         except ValueError as error:
-            # RL Zoo asks for the best trial even when none has completed (every trial of the study pruned or failed)
-            if "No trials are completed yet" not in str(error):
+            # RL Zoo asks for the best trial even when none has completed (every trial of the study pruned or failed,
+            # or SIGTERM during the first): Optuna's in-memory storage says so, its database storage "Record does not
+            # exist."
+            if not any(message in str(error) for message in ("No trials are completed yet", "Record does not exist")):
                 raise
             print(f"No trial of the study {self.study_name!r} has completed yet (all were pruned or failed): no best trial")
         finally:

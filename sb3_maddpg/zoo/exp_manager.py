@@ -228,6 +228,12 @@ class MultiAgentExperimentManager(ExperimentManager):
         where = f"the entry {self.env_name.gym_id!r} of {self.config} (or -params)"
         check_hyperparameter_keys(hyperparams, self.algo, where)
         check_zoo_values(hyperparams, where, n_timesteps_given=self.n_timesteps > 0)
+        if "env_wrapper" in hyperparams and is_multiagent_env(self.env_name.gym_id):
+            # RL Zoo would take it and never use it: make_multiagent_vec_env builds the env, not gym.make
+            raise UsageError(
+                f"env_wrapper wraps a single-agent Gymnasium env and would have no effect on the multi-agent env "
+                f"{self.env_name.gym_id} (in {where}); remove it, or wrap the VecEnv with vec_env_wrapper"
+            )
         return hyperparams, saved_hyperparams
 
     def _trial_hyperparameters(self, trial_id: int) -> dict[str, Any]:

@@ -252,6 +252,17 @@ def test_enjoy_checks_every_run_file_rl_zoo_reads(
     assert not marker.exists() and "writes_a_marker_module" not in sys.modules
 
 
+def test_record_video_checks_the_run_files_too(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    run = _run_folder(tmp_path / "logs" / "maddpg", ENV, f"env: {ENV}\n", config=f"normalize: {_writes(marker)!r}\n")
+    _model(tmp_path).rename(run / f"{ENV}.zip")
+    with pytest.raises(SystemExit):
+        main(["record-video", "--env", ENV, "-f", "logs", "-n", "5", "-o", os.fspath(tmp_path / "videos")])
+    assert re.search("normalize: .* is not read: it is an expression", capsys.readouterr().err)
+    assert not marker.exists()
+
+
 def test_enjoy_reads_vecnormalize_pkl_without_running_code(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
     monkeypatch.chdir(tmp_path)
     marker = tmp_path / "ran"

@@ -206,6 +206,8 @@ def check_run_folder(params_dir: str | os.PathLike) -> None:
         if (folder / name).is_file():
             content = read_run_yaml(folder / name)
             if name == "config.yml" and isinstance(content, dict):
-                read_as_data({key: content[key] for key in ("normalize", *CODE_KEYS[:-1]) if key in content}, folder / name)
+                # What enjoy and record-video evaluate or import from it (the run's policy is the model's, not read)
+                read_keys = ("normalize", "env_wrapper", "vec_env_wrapper", "callback")
+                read_as_data({key: content[key] for key in read_keys if key in content}, os.fspath(folder / name))
     if (folder / "vecnormalize.pkl").is_file():
         load_vec_normalize(folder / "vecnormalize.pkl")

@@ -23,7 +23,7 @@ from typing import Any, NoReturn
 
 import yaml
 
-from sb3_maddpg.zoo.registry import UsageError, check_env_kwargs
+from sb3_maddpg.zoo.registry import TrainingStopped, UsageError, check_env_kwargs
 
 PROG = "sb3_maddpg"
 ZOO_COMMANDS = ("train", "optimize", "enjoy", "record-video")
@@ -122,6 +122,7 @@ def _zoo_preparser(command: str) -> argparse.ArgumentParser:
         parser.add_argument("-f", "--log-folder", default="logs")
         parser.add_argument("--storage")
         parser.add_argument("--study-name")
+        parser.add_argument("--safe-config", action="store_true")
     return parser
 
 
@@ -153,20 +154,36 @@ def _check_env(env_id: str, algo: str) -> None:
         )
 
 
-def _check_config(config: str, env_id: str) -> None:
+def _check_config(config: str, env_id: str, safe: bool = False) -> None:
+    """
+    The ``-conf`` file: it exists and has an entry for the env.
+
+    :param config: the file
+    :param env_id: the env trained
+    :param safe: ``--safe-config``: the file must be YAML, and the entry values only (no expression RL Zoo would
+        evaluate, no wrapper or callback from a module not loaded; see ``sb3_maddpg.zoo.run_files.read_as_data``)
+    """
+    from sb3_maddpg.evaluation.report import BoundedSafeLoader
+    from sb3_maddpg.zoo.run_files import read_as_data
+
     if not os.path.isfile(config):
         raise UsageError(f"config file {config} not found")
     if not config.endswith((".yml", ".yaml")):
+        if safe:
+            raise UsageError(f"--safe-config reads YAML files only: -conf {config} would be run as Python")
         return
     try:
         with open(config) as file:
-            entries = yaml.safe_load(file) or {}
-    except yaml.YAMLError as error:
+            entries = yaml.load(file, Loader=BoundedSafeLoader) or {}  # noqa: S506 (a safe loader)
+    except (yaml.YAMLError, RecursionError) as error:
         raise UsageError(f"cannot read {config}: {error}".replace("\n", " ")) from error
     if not isinstance(entries, dict):
         raise UsageError(f"{config} must map env ids to hyperparameter entries")
     if env_id not in entries and "default" not in entries:
         raise UsageError(f"{config} has no entry for {env_id!r}; its entries: {', '.join(map(str, entries))}")
+    name = env_id if env_id in entries else "default"
+    if safe and isinstance(entries[name], dict):
+        read_as_data(entries[name], f"the entry {name!r} of {config} (--safe-config)")
 
 
 def _check_writable(folder: str, flag: str) -> None:
@@ -232,7 +249,8 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     argv = list(argv)
     if _has_flag(argv, "-h", "--help"):
         # RL Zoo's help follows, with RL Zoo's own defaults for --algo and --env
-        print(f"{PROG} {command}: {DEFAULTS_HELP}; RL Zoo's options follow.\n")
+        safe = "" if command in PLAY_COMMANDS else "; --safe-config: the -conf entry must hold values only, no code"
+        print(f"{PROG} {command}: {DEFAULTS_HELP}{safe}; RL Zoo's options follow.\n")
         return argv
     args, _ = _zoo_preparser(command).parse_known_args(argv)
     _import_gym_packages(args.gym_packages)
@@ -258,8 +276,10 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         from huggingface_sb3 import EnvironmentName
         from rl_zoo3.utils import get_model_path
 
+        from sb3_maddpg.zoo.run_files import check_run_folder
+
         try:
-            _, model_path, _ = get_model_path(
+            _, model_path, log_path = get_model_path(
                 args.exp_id,
                 args.folder,
                 args.algo,
@@ -270,6 +290,9 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
             )
         except (AssertionError, ValueError) as error:
             raise UsageError(f"no trained model to load: {error} (train one first, or pass -f LOG_FOLDER)") from error
+        # RL Zoo reads the run's config.yml and args.yml with YAML's unsafe loader, evaluates a normalize string, imports
+        # the wrappers they name and unpickles vecnormalize.pkl: each is checked first (every layout, --exp-id -1 too)
+        check_run_folder(os.path.join(log_path, str(EnvironmentName(args.env))))
         if args.algo in MULTIAGENT_ALGOS and is_multiagent_env(args.env):
             _check_model_fits_env(model_path, args.env, env_kwargs)
         return argv
@@ -291,7 +314,9 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         config = _default_config(args.algo)
         argv += ["-conf", config]
     if config is not None:
-        _check_config(config, args.env)
+        _check_config(config, args.env, safe=args.safe_config)
+    # The library's own flag: RL Zoo's parser does not know it
+    argv = [arg for arg in argv if arg != "--safe-config"]
     if args.trained_agent and not (args.trained_agent.endswith(".zip") and os.path.isfile(args.trained_agent)):
         raise UsageError(f"--trained-agent: {args.trained_agent} is not an existing .zip model file")
     if args.trained_agent and args.algo in MULTIAGENT_ALGOS:
@@ -602,7 +627,8 @@ def main(argv: list[str] | None = None) -> int:
     Entry point of ``python -m sb3_maddpg`` and of the ``sb3_maddpg`` console script.
 
     :param argv: arguments (default: ``sys.argv[1:]``)
-    :return: exit status 0; errors exit through ``SystemExit`` with status 2
+    :return: exit status 0; ``train`` and ``optimize`` stopped by SIGTERM 143 and by an env worker process that ended 3,
+        after the final save; errors exit through ``SystemExit`` with status 2
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
@@ -624,6 +650,9 @@ def main(argv: list[str] | None = None) -> int:
         else:
             parser.print_help(sys.stderr)
             return 2
+    except TrainingStopped as stopped:
+        sys.stderr.write(f"{PROG} {command}: {stopped}\n")
+        return stopped.exit_status
     except UsageError as error:
         _fail(command if command in (*ZOO_COMMANDS, "evaluate", "plot", "select-checkpoint") else None, str(error))
     return 0

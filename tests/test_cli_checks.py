@@ -136,3 +136,12 @@ def test_a_file_or_number_that_cannot_work_is_one_line(argv, message, tmp_path: 
     (tmp_path / "run" / "monitor.csv").write_bytes(BINARY_MONITOR.read_bytes())
     assert message in _fails_with(argv, capsys)
     assert not (tmp_path / "logs").exists() and not (tmp_path / "results").exists()
+
+
+def test_an_env_wrapper_on_a_multiagent_env_is_refused(tmp_path: Path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "wrapped.yml").write_text(f"{ENV}:\n  n_timesteps: 10\n  env_wrapper: gymnasium.wrappers.TimeLimit\n")
+    argv = ["train", "--env", ENV, "-conf", str(tmp_path / "wrapped.yml"), "--env-kwargs", "obs_size:16", "n_uavs:2"]
+    err = _fails_with(argv, capsys)
+    assert f"env_wrapper wraps a single-agent Gymnasium env and would have no effect on the multi-agent env {ENV}" in err
+    assert not (tmp_path / "logs" / "maddpg" / f"{ENV}_1").exists()

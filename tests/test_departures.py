@@ -116,3 +116,14 @@ def test_a_model_trained_with_departures_acts_on_the_plain_env():
     model.learn(20)
     results, _ = evaluate_controllers(LeavingAgentEnv, [ModelController(model)], n_episodes=2)
     assert [episode["length"] for episode in results["maddpg"]] == [5.0, 5.0]
+
+
+def test_predict_on_the_plain_envs_dict_says_to_append_the_in_episode_entry():
+    venv = make_multiagent_vec_env(LeavingAgentEnv, seed=0, black_death=True)
+    model = MADDPG("MlpPolicy", venv, buffer_size=100, learning_starts=10, batch_size=8, seed=0,
+                   policy_kwargs=dict(n_quantiles=1))  # fmt: skip
+    observations, _ = LeavingAgentEnv().reset(seed=0)
+    with pytest.raises(ValueError, match=r"'agent_0' has \d+ entries.*black_death=True.*np.append\(observation, 1.0\)"):
+        model.predict(observations)
+    actions, _ = model.predict({agent: np.append(obs, 1.0).astype(np.float32) for agent, obs in observations.items()})
+    assert set(actions) == {"agent_0", "agent_1"}

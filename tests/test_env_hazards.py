@@ -471,3 +471,27 @@ def test_show_grounded_marks_a_grounded_uav_with_its_steps_left():
 def test_show_grounded_must_be_a_bool(value):
     with pytest.raises(TypeError, match="show_grounded must be True or False"):
         UAVCoverageCore(obs_size=16, show_grounded=value)
+
+
+@pytest.mark.parametrize(
+    ("settings", "message"),
+    [
+        ({"storm_zone": (0, 0, 4, 4)}, "storm_zone has no effect: storm_prob is 0"),
+        ({"crash_ground_steps": 5}, "crash_ground_steps has no effect: nothing crashes a UAV without gusts"),
+        ({"crash_energy": 2.0}, "crash_energy has no effect: nothing crashes a UAV without gusts"),
+        ({"show_grounded": True}, "show_grounded has no effect: crash_ground_steps is 0"),
+    ],
+    ids=["storm_zone", "crash_ground_steps", "crash_energy", "show_grounded"],
+)
+def test_a_setting_without_effect_is_said(settings, message):
+    with pytest.warns(UserWarning, match=message):
+        UAVCoverageCore(obs_size=16, **settings)
+
+
+def test_settings_with_effect_say_nothing():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        UAVCoverageCore(obs_size=16, gust_prob=0.1, crash_energy=2.0, crash_ground_steps=3, show_grounded=True)
+        UAVCoverageCore(obs_size=16, storm_zone=(0, 0, 4, 4), storm_prob=0.1, crash_ground_steps=3)

@@ -203,3 +203,12 @@ def test_competing_teams_reach_tensorboard(tmp_path):
     model.learn(20, log_interval=1)
     header = (tmp_path / "progress.csv").read_text().splitlines()[0].split(",")
     assert {"rollout/ep_rew_team_adversary", "rollout/ep_rew_team_agent", "rollout/ep_rew_agent_1"} <= set(header)
+
+
+def test_predict_refuses_another_agents_observation_in_a_dict():
+    model = small_model(make_multiagent_vec_env(MixedSpacesEnv, seed=0))
+    observations, _ = MixedSpacesEnv().reset(seed=3)
+    # the slider (2 entries) given the mover's 4: it fits the padded rows (4,), but is not the slider's observation
+    swapped = {"mover": observations["mover"], "slider": observations["mover"]}
+    with pytest.raises(ValueError, match=r"observation of 'slider' has the shape \(4,\), but 'slider'.s own .* \(2,\)"):
+        model.predict(swapped)

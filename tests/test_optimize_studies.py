@@ -8,6 +8,7 @@ from pathlib import Path
 import optuna
 import pytest
 import sqlalchemy
+import torch
 from cli_testing import fails_with
 
 from sb3_maddpg.__main__ import main
@@ -119,3 +120,48 @@ def test_the_pickled_study_storage_has_no_password(tmp_path: Path) -> None:
     shared = exp_manager.ZooRDBStorage(f"sqlite:///{tmp_path / 'optuna.db'}")
     shared.url = "postgresql://user:hunter2@db.example/optuna"  # as on a database server
     assert b"hunter2" not in pickle.dumps(shared)
+
+
+def test_a_trials_parameters_are_read_as_data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    from sb3_maddpg.zoo.run_files import read_as_data
+
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    url = f"sqlite:///{tmp_path / 'optuna.db'}"
+    study = optuna.create_study(storage=url, study_name="shared", direction="maximize")
+    # a study from someone else: a string parameter that RL Zoo would evaluate as policy_kwargs
+    code = f"open({str(marker)!r}, 'w').close() or dict()"
+    distributions = {"one_minus_gamma": optuna.distributions.FloatDistribution(0.01, 0.3)}
+    distributions["policy_kwargs"] = optuna.distributions.CategoricalDistribution([code])
+    trial = optuna.trial.create_trial(
+        params={"one_minus_gamma": 0.1, "policy_kwargs": code}, distributions=distributions, value=1.0
+    )
+    study.add_trial(trial)
+    err = fails_with(["train", *TINY, "-n", "10", "--storage", url, "--study-name", "shared", "--trial-id", "0"], capsys)
+    assert "policy_kwargs: " in err and "in trial 0 of the study 'shared'" in err and "only values are accepted" in err
+    assert not marker.exists()
+    # what RL Zoo's entries hold is read as the data it stands for
+    read = read_as_data({"policy_kwargs": "dict(net_arch=[64, -1], activation_fn=nn.ReLU, n={'a': (1.5, None)})"}, "x")
+    assert read["policy_kwargs"] == {"net_arch": [64, -1], "activation_fn": torch.nn.ReLU, "n": {"a": (1.5, None)}}
+
+
+def test_sigterm_during_the_first_trial_ends_with_the_report(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    import os
+    import signal
+
+    from rl_zoo3.exp_manager import ExperimentManager
+
+    monkeypatch.chdir(tmp_path)
+
+    def terminated(self, trial):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # the handler interrupts this
+        raise AssertionError("SIGTERM was not handled")
+
+    monkeypatch.setattr(ExperimentManager, "objective", terminated)
+    url = f"sqlite:///{tmp_path / 'optuna.db'}"
+    argv = ["optimize", *TINY, "-n", "10", "--n-trials", "2", "--storage", url, "--study-name", "stopped"]
+    assert main(argv) == 143
+    out, err = capsys.readouterr()
+    assert "No trial of the study 'stopped' has completed yet" in out and "trial 0: FAIL" in out, out
+    assert "stopped by SIGTERM" in err and "Traceback" not in err

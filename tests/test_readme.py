@@ -4,6 +4,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 README = Path(__file__).resolve().parent.parent / "README.md"
 
@@ -26,3 +27,19 @@ def test_readme_library_example_runs(tmp_path, monkeypatch) -> None:
     assert set(namespace["agent_actions"]) == set(namespace["env"].possible_agents)
     assert (tmp_path / "maddpg_uav.zip").is_file()
     assert list((tmp_path / "runs").rglob("events.out.tfevents.*"))
+
+
+def test_the_readme_says_where_a_resume_continues_exactly() -> None:
+    from sb3_maddpg.common.vec_env import env_generator
+    from sb3_maddpg.zoo.registry import make_multiagent_env
+
+    text = " ".join(README.read_text().split())
+    claim = text[text.index("continues exactly") :][:400]
+    assert "the UAV envs" in claim and "not on MPE2's tasks" in claim
+    # what the claim rests on: the UAV env's generator is read (and saved with the model), MPE2's is not
+    uav = make_multiagent_env("uav_coverage_fast_v0")
+    uav.reset(seed=0)
+    assert env_generator(uav) is not None
+    simple_spread = pytest.importorskip("mpe2.simple_spread_v3").parallel_env()
+    simple_spread.reset(seed=0)
+    assert env_generator(simple_spread) is None

@@ -5,6 +5,7 @@ import collections
 import json
 import os
 import pickle
+import re
 import sys
 import zipfile
 from pathlib import Path
@@ -203,3 +204,177 @@ def test_a_module_attribute_that_would_import_is_refused(monkeypatch: pytest.Mon
     with pytest.raises(pickle.UnpicklingError, match="it refers to numpy.f2py"):
         restricted_loads(b"cnumpy\nf2py\n.")
     assert "numpy.f2py" not in sys.modules
+
+
+ENV = "uav_coverage_fast_v0"
+TINY = ["--env", ENV, "--env-kwargs", "obs_size:16", "max_cycles:10", "n_uavs:2", "--seed", "0", "--eval-freq", "-1"]
+TINY += ["-params", "learning_starts:20", "train_freq:10", "policy_kwargs:dict(n_quantiles=4, net_arch=[16])"]
+
+
+def _writes(marker: Path) -> str:
+    """A Python expression that creates ``marker`` when it is evaluated, and is a dict (what RL Zoo expects)."""
+    return f"open({os.fspath(marker)!r}, 'w').close() or dict()"
+
+
+def _enjoy_fails(tmp_path: Path, capsys: pytest.CaptureFixture, *extra: str) -> str:
+    with pytest.raises(SystemExit):
+        main(["enjoy", "--env", ENV, "-f", "logs", "--no-render", "-n", "5", *extra])
+    return capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("layout", "config", "message"),
+    [
+        ("run", "normalize: {expression!r}\n", "normalize: .* is not read: it is an expression"),
+        ("no-args", "!!python/object/apply:os.mkdir [{marker!r}]\n", "config.yml is not a run file of plain YAML values"),
+        ("exp-id-1", "normalize: {expression!r}\n", "normalize: .* is not read: it is an expression"),
+        ("run", "vec_env_wrapper: writes_a_marker_module.Wrapper\n", "--gym-packages writes_a_marker_module"),
+    ],
+    ids=["normalize-string", "config-without-args", "exp-id-minus-1", "wrapper-module"],
+)
+def test_enjoy_checks_every_run_file_rl_zoo_reads(
+    layout: str, config: str, message: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    # a module whose import would create the marker: a wrapper may name only modules already loaded
+    (tmp_path / "writes_a_marker_module.py").write_text(f"open({os.fspath(marker)!r}, 'w').close()\nWrapper = dict\n")
+    monkeypatch.syspath_prepend(os.fspath(tmp_path))
+    algo_folder = tmp_path / "logs" / "maddpg"
+    run = algo_folder if layout == "exp-id-1" else algo_folder / f"{ENV}_1"
+    (run / ENV).mkdir(parents=True)
+    (run / ENV / "config.yml").write_text(config.format(expression=_writes(marker), marker=os.fspath(marker)))
+    if layout == "run":
+        (run / ENV / "args.yml").write_text(f"env: {ENV}\nenv_kwargs: null\n")
+    _model(tmp_path).rename(run / f"{ENV}.zip")
+    extra = ["--exp-id", "-1"] if layout == "exp-id-1" else []
+    assert re.search(message, _enjoy_fails(tmp_path, capsys, *extra))
+    assert not marker.exists() and "writes_a_marker_module" not in sys.modules
+
+
+def test_record_video_checks_the_run_files_too(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    run = _run_folder(tmp_path / "logs" / "maddpg", ENV, f"env: {ENV}\n", config=f"normalize: {_writes(marker)!r}\n")
+    _model(tmp_path).rename(run / f"{ENV}.zip")
+    with pytest.raises(SystemExit):
+        main(["record-video", "--env", ENV, "-f", "logs", "-n", "5", "-o", os.fspath(tmp_path / "videos")])
+    assert re.search("normalize: .* is not read: it is an expression", capsys.readouterr().err)
+    assert not marker.exists()
+
+
+def test_enjoy_reads_vecnormalize_pkl_without_running_code(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    run = _run_folder(tmp_path / "logs" / "maddpg", ENV, f"env: {ENV}\nenv_kwargs: null\n", config="normalize: true\n")
+    (run / ENV / "vecnormalize.pkl").write_bytes(pickle.dumps(_RunsCode(marker)))
+    _model(tmp_path).rename(run / f"{ENV}.zip")
+    assert "vecnormalize.pkl cannot be read safely, it is not read: it refers to" in _enjoy_fails(tmp_path, capsys)
+    assert not marker.exists()
+
+
+def test_vecnormalize_statistics_are_read_by_the_restricted_unpickler(tmp_path: Path) -> None:
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from sb3_maddpg.zoo.run_files import load_vec_normalize
+
+    env = make_multiagent_vec_env(lambda **kwargs: TargetReachEnv(), n_envs=1)
+    statistics = VecNormalize(env)
+    statistics.reset()
+    statistics.save(tmp_path / "vecnormalize.pkl")
+    loaded = load_vec_normalize(tmp_path / "vecnormalize.pkl", env)
+    assert loaded.venv is env and loaded.obs_rms.mean.shape == statistics.obs_rms.mean.shape
+    (tmp_path / "list.pkl").write_bytes(pickle.dumps([1, 2]))
+    with pytest.raises(ValueError, match="does not hold VecNormalize statistics"):
+        load_vec_normalize(tmp_path / "list.pkl")
+
+
+def test_train_i_reads_the_runs_vecnormalize_pkl_without_running_code(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", *TINY, "-n", "20"]) == 0
+    run = tmp_path / "logs" / "maddpg" / f"{ENV}_1"
+    marker = tmp_path / "ran"
+    (run / ENV / "vecnormalize.pkl").write_bytes(pickle.dumps(_RunsCode(marker)))
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["train", *TINY, "-n", "20", "-i", os.fspath(run / f"{ENV}.zip")])
+    assert "vecnormalize.pkl cannot be read safely, it is not read" in capsys.readouterr().err
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ("  policy_kwargs: {expression!r}\n", "policy_kwargs: .* is not read: it is an expression, and only values"),
+        ("  normalize: {expression!r}\n", "normalize: .* is not read: it is an expression"),
+        ("  callback: writes_a_marker_module.Callback\n", "callback: .*--gym-packages writes_a_marker_module"),
+    ],
+    ids=["policy_kwargs", "normalize", "callback"],
+)
+def test_safe_config_refuses_code_in_the_entry(
+    entry: str, message: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    from cli_testing import fails_with
+
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    (tmp_path / "writes_a_marker_module.py").write_text(f"open({os.fspath(marker)!r}, 'w').close()\nCallback = dict\n")
+    monkeypatch.syspath_prepend(os.fspath(tmp_path))
+    config = tmp_path / "shared.yml"
+    config.write_text(f"{ENV}:\n  n_timesteps: 100\n" + entry.format(expression=_writes(marker)))
+    err = fails_with(["train", *TINY, "-n", "20", "-conf", os.fspath(config), "--safe-config"], capsys)
+    assert re.search(message, err) and "(--safe-config)" in err
+    assert not marker.exists() and "writes_a_marker_module" not in sys.modules
+
+
+def test_safe_config_reads_yaml_values_only(tmp_path: Path, capsys) -> None:
+    from cli_testing import fails_with
+
+    from sb3_maddpg.__main__ import _check_config, packaged_config, prepare_zoo_argv
+
+    # the packaged files hold values only (their policy_kwargs strings are dict(...) of literals)
+    for algo in ("maddpg", "matd3"):
+        config = os.fspath(packaged_config(algo))
+        for env_id in yaml.safe_load(Path(config).read_text()):
+            _check_config(config, env_id, safe=True)
+    assert "--safe-config" not in prepare_zoo_argv("train", ["--env", ENV, "--safe-config"])
+    (tmp_path / "hyperparams.py").write_text("hyperparams = {}\n")
+    err = fails_with(["train", "--env", ENV, "-conf", os.fspath(tmp_path / "hyperparams.py"), "--safe-config"], capsys)
+    assert "--safe-config reads YAML files only" in err
+
+
+def _alias_bomb(levels: int = 8) -> str:
+    """A YAML file of nested aliases, 10**levels values once expanded (about 1.9 KB for 8 levels)."""
+    lines = ["env: uav_coverage_fast_v0", "l0: &l0 [x, x, x, x, x, x, x, x, x, x]"]
+    lines += [f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 10)}]" for i in range(1, levels + 1)]
+    return "\n".join(lines) + "\n"
+
+
+def test_yaml_aliases_are_bounded(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    import time
+
+    from cli_testing import fails_with
+
+    from sb3_maddpg.evaluation.report import MAX_YAML_VALUES, read_run_yaml
+
+    run = _run_folder(tmp_path, ENV, _alias_bomb())
+    _model(tmp_path).rename(run / f"{ENV}.zip")
+    started = time.perf_counter()
+    err = fails_with(["evaluate", "--model", os.fspath(run / f"{ENV}.zip"), "--out", os.fspath(tmp_path / "out")], capsys)
+    assert (
+        f"args.yml is not a run file of plain YAML values, it is not read: its aliases expand to more than {MAX_YAML_VALUES}"
+        in err
+    )
+    assert time.perf_counter() - started < 5
+    (tmp_path / "recursive.yml").write_text("a: &a [1, *a]\n")
+    with pytest.raises(ValueError, match="a recursive alias"):
+        read_run_yaml(tmp_path / "recursive.yml")
+    # a -conf file too, and an ordinary file with aliases is read
+    (tmp_path / "bomb.yml").write_text(_alias_bomb() + f"{ENV}: {{n_timesteps: 10, big: *l8}}\n")
+    assert "aliases expand to more than" in fails_with(
+        ["train", "--env", ENV, "-conf", os.fspath(tmp_path / "bomb.yml")], capsys
+    )
+    (tmp_path / "small.yml").write_text(_alias_bomb(2))
+    assert len(read_run_yaml(tmp_path / "small.yml")["l2"]) == 10

@@ -39,6 +39,7 @@ from .validation import (
     check_real,
     check_step_memory,
     check_zone,
+    warn_without_effect,
 )
 
 __all__ = [
@@ -242,6 +243,20 @@ class UAVCoverageCore:
                 f"storm_prob={storm_prob!r} needs crash_ground_steps >= 1 or crash_energy > 0 (a strike costs what a "
                 "crash costs, and with both at 0 it would cost nothing); set one of them or leave storm_prob at 0"
             )
+        # Settings that act only with another one: accepted (a sweep may set them beside a zero probability), but said
+        crashing = self.gust_prob > 0.0 or self.storm_prob > 0.0
+        no_crash = "nothing crashes a UAV without gusts (gust_prob > 0) or a storm (storm_prob > 0)"
+        warn_without_effect(
+            {
+                "storm_zone": (self.storm_zone is not None and self.storm_prob == 0.0, "storm_prob is 0, so no storm strikes"),
+                "crash_ground_steps": (self.crash_ground_steps > 0 and not crashing, no_crash),
+                "crash_energy": (self.crash_energy > 0.0 and not crashing, no_crash),
+                "show_grounded": (
+                    self.show_grounded and self.crash_ground_steps == 0,
+                    "crash_ground_steps is 0",
+                ),
+            }
+        )
         #: Whether a hazard is switched on (the infos then hold the hazard counters).
         self.hazards = self.gust_prob > 0.0 or self.link_failure_prob > 0.0 or self.storm_prob > 0.0
         #: Channels of an agent's observation: 3, or 4 with the teammate channel.

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import warnings
 from typing import Any
 
 import numpy as np
@@ -22,6 +23,7 @@ __all__ = [
     "check_real",
     "check_step_memory",
     "check_zone",
+    "warn_without_effect",
 ]
 
 # Bounds of every real parameter: with them, squared ranges, energies times distances, rewards times reward_scale and
@@ -129,3 +131,15 @@ def check_zone(name: str, value: Any, map_size: int) -> tuple[float, float, floa
     if not (0.0 <= x0 < x1 <= map_size and 0.0 <= y0 < y1 <= map_size):
         raise ValueError(f"{name} must be {accepted}, got {value!r}")
     return x0, y0, x1, y1
+
+
+def warn_without_effect(settings: dict[str, tuple[bool, str]]) -> None:
+    """
+    Warn (once per message, Python's default) about each setting given a value that acts only with another setting
+    that is off: accepted, since a sweep may set it beside a zero probability, but said.
+
+    :param settings: the setting's name -> (whether it is without effect, what it needs)
+    """
+    for name, (idle, needs) in settings.items():
+        if idle:
+            warnings.warn(f"{name} has no effect: {needs}", UserWarning, stacklevel=3)

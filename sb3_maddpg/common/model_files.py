@@ -183,11 +183,22 @@ def _load_storage(data: bytes) -> Any:
 
 
 class _RestrictedUnpickler(pickle.Unpickler):
-    """An unpickler that builds only what a model of this library is made of (see the module's docstring)."""
+    """
+    An unpickler that builds only what a model of this library is made of (see the module's docstring).
+
+    :param file: the pickle
+    :param extra_classes: classes also built (already imported by the caller), found by their module and name
+    """
+
+    def __init__(self, file: io.BytesIO, extra_classes: tuple[type, ...] = ()) -> None:
+        super().__init__(file)
+        self._extra = {(cls.__module__, cls.__qualname__): cls for cls in extra_classes}
 
     def find_class(self, module: str, name: str) -> Any:
         if (module, name) == ("torch.storage", "_load_from_bytes"):
             return _load_storage
+        if (module, name) in self._extra:
+            return self._extra[module, name]
         if (module, name) in _FUNCTIONS or (module == "builtins" and name in _BUILTINS):
             return super().find_class(module, name)
         source = _class_module(module)
@@ -205,15 +216,16 @@ class _RestrictedUnpickler(pickle.Unpickler):
         raise pickle.UnpicklingError(f"it refers to {module}.{name}, which is not part of a model of this library")
 
 
-def restricted_loads(data: bytes) -> Any:
+def restricted_loads(data: bytes, extra_classes: tuple[type, ...] = ()) -> Any:
     """
     Unpickle ``data`` building only what a model or replay buffer of this library is made of.
 
     :param data: a pickle (or cloudpickle) string
+    :param extra_classes: classes also built (e.g. ``VecNormalize`` for a run's ``vecnormalize.pkl``)
     :return: the object
     :raises pickle.UnpicklingError: naming the first reference that is refused
     """
-    return _RestrictedUnpickler(io.BytesIO(data)).load()
+    return _RestrictedUnpickler(io.BytesIO(data), extra_classes).load()
 
 
 def read_class_parameters(

@@ -400,6 +400,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         """
         if is_agent_dict(observation):
             assert self.agent_names is not None
+            self._check_agent_observations(observation)  # type: ignore[arg-type]
             padded_shape = tuple(self.observation_space.shape) if self.agent_spaces is not None else None  # type: ignore[arg-type]
             rows, agents = rows_from_agent_dict(observation, self.agent_names, padded_shape)  # type: ignore[arg-type]
             actions, state = self.predict(rows, state, episode_start, deterministic)
@@ -419,6 +420,39 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
             if observation.dtype.kind == "f" and not np.isfinite(observation).all():
                 raise ValueError(f"predict: the observations hold NaN or infinite values ({_first_non_finite(observation)})")
         return super().predict(observation, state, episode_start, deterministic)
+
+    def _check_agent_observations(self, observations: dict[str, Any]) -> None:
+        """
+        Refuse, naming the agent, an observation of a PettingZoo dict that is not of the agent's own shape: another
+        agent's (which may fit the padded rows), or, for a model trained with ``black_death=True``, one without the
+        in-episode entry those observations end with.
+
+        :param observations: agent -> observation, as ``predict`` gets them
+        """
+        assert self.agent_names is not None and self.n_agents is not None
+        if self.agent_spaces is not None:
+            shapes = [tuple(space.shape) for space in self.agent_spaces.observation_spaces]
+        else:
+            shapes = [tuple(self.observation_space.shape)] * self.n_agents  # type: ignore[arg-type]
+        for agent, value in observations.items():
+            if agent not in self.agent_names:
+                continue  # named by rows_from_agent_dict, with the team
+            shape, own = np.shape(value), shapes[self.agent_names.index(agent)]
+            if shape == own:
+                continue
+            if self.departures and shape[:-1] == own[:-1] and shape[-1:] == (own[-1] - 1,):
+                raise ValueError(
+                    f"predict: the observation of {agent!r} has {shape[-1]} entries, and the model's {own[-1]}: it was "
+                    "trained with black_death=True, whose observations end with an in-episode entry (1.0 while the agent "
+                    "is in the episode, 0.0 once it has left); pass np.append(observation, 1.0) for each agent in the "
+                    "dict, or step the env made by make_multiagent_vec_env(..., black_death=True)"
+                )
+            if self.agent_spaces is not None:
+                raise ValueError(
+                    f"predict: the observation of {agent!r} has the shape {shape}, but {agent!r}'s own observations "
+                    f"have the shape {own}; pass each agent its own observation (another agent's width is not accepted, "
+                    "even where it fits the padded rows)"
+                )
 
     def _own_action(self, agent: int, action: np.ndarray) -> np.ndarray:
         """Agent ``agent``'s action in its own space: a padded Box action cut to the agent's width."""

@@ -33,11 +33,50 @@ class OpponentEnvMismatchError(ModelEnvMismatchError):
     """The same, for the opponent's model file (``evaluate --opponent``)."""
 
 
-class RunFileLoader(yaml.SafeLoader):
+# The most values a YAML file may expand to, its aliases followed (a run's args.yml holds about 50): a file of nested
+# aliases (1.9 KB for 10**8 values) would otherwise be read as shared references and blow up when printed or copied
+MAX_YAML_VALUES = 100_000
+
+
+class BoundedSafeLoader(yaml.SafeLoader):
+    """
+    YAML's safe loader, refusing (with a ``yaml.YAMLError``) a document whose aliases expand to more than
+    ``MAX_YAML_VALUES`` values, or refer to themselves, before anything is built from it.
+    """
+
+    def compose_document(self) -> yaml.Node:
+        node = super().compose_document()
+        _expanded_size(node, {}, set())
+        return node
+
+
+def _expanded_size(node: yaml.Node, sizes: dict[int, int], open_nodes: set[int]) -> int:
+    """The number of values ``node`` stands for with its aliases expanded (shared nodes counted once per use)."""
+    if id(node) in sizes:
+        return sizes[id(node)]
+    if id(node) in open_nodes:
+        raise yaml.YAMLError("it holds an alias to a value that contains it (a recursive alias)")
+    open_nodes.add(id(node))
+    children: list[yaml.Node] = []
+    if isinstance(node, yaml.SequenceNode):
+        children = node.value
+    elif isinstance(node, yaml.MappingNode):
+        children = [item for pair in node.value for item in pair]
+    size = 1
+    for child in children:
+        size += _expanded_size(child, sizes, open_nodes)
+        if size > MAX_YAML_VALUES:
+            raise yaml.YAMLError(f"its aliases expand to more than {MAX_YAML_VALUES} values")
+    open_nodes.discard(id(node))
+    sizes[id(node)] = size
+    return size
+
+
+class RunFileLoader(BoundedSafeLoader):
     """
     YAML's safe loader and the two Python tags RL Zoo writes in a run's ``args.yml`` and ``config.yml``
     (``collections.OrderedDict``, read as a dict, and ``python/tuple``); any other tag is refused, where RL Zoo's
-    ``UnsafeLoader`` would build (or run) what it names.
+    ``UnsafeLoader`` would build (or run) what it names; aliases are bounded (:class:`BoundedSafeLoader`).
     """
 
 
@@ -65,7 +104,7 @@ def read_run_yaml(path: str | os.PathLike) -> Any:
     try:
         with open(path) as file:
             return yaml.load(file, Loader=RunFileLoader)  # noqa: S506 (a safe loader)
-    except (yaml.YAMLError, ValueError, TypeError) as error:
+    except (yaml.YAMLError, ValueError, TypeError, RecursionError) as error:
         reason = " ".join(str(error).split())
         raise UsageError(f"{os.fspath(path)} is not a run file of plain YAML values, it is not read: {reason}") from error
 

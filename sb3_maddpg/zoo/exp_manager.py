@@ -8,7 +8,8 @@ import shutil
 import socket
 import warnings
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from copy import deepcopy
 from typing import Any
 
@@ -20,13 +21,21 @@ from rl_zoo3.hyperparams_opt import HYPERPARAMS_CONVERTER
 from rl_zoo3.utils import ALGOS, get_wrapper_class
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
-from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecFrameStack, VecNormalize
+from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecFrameStack
 
 from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
 from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
 from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
-from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, UsageError, check_env_kwargs, is_multiagent_env
+from sb3_maddpg.zoo.registry import (
+    EXIT_ENV_WORKER_ENDED,
+    MULTIAGENT_ENVS,
+    TrainingStopped,
+    UsageError,
+    check_env_kwargs,
+    is_multiagent_env,
+)
+from sb3_maddpg.zoo.run_files import load_vec_normalize, read_as_data
 from sb3_maddpg.zoo.storage import (
     HEARTBEAT_GRACE_S,
     HEARTBEAT_INTERVAL_S,
@@ -190,6 +199,8 @@ class MultiAgentExperimentManager(ExperimentManager):
         super().__init__(*args, **kwargs)
         # The Optuna trials this process has run (a shared study also holds other workers')
         self._worker_trials: list[Any] = []
+        # Why training stopped before its end (an env worker process that ended), once the model is saved
+        self._stopped: str | None = None
         if self.optimize_hyperparameters and self.n_jobs > 1:
             # Optuna would run the trials as threads of this one manager, which holds each trial's state
             # (hyperparameters, action noise, envs) in its attributes: the trials would overwrite each other's.
@@ -217,6 +228,12 @@ class MultiAgentExperimentManager(ExperimentManager):
         where = f"the entry {self.env_name.gym_id!r} of {self.config} (or -params)"
         check_hyperparameter_keys(hyperparams, self.algo, where)
         check_zoo_values(hyperparams, where, n_timesteps_given=self.n_timesteps > 0)
+        if "env_wrapper" in hyperparams and is_multiagent_env(self.env_name.gym_id):
+            # RL Zoo would take it and never use it: make_multiagent_vec_env builds the env, not gym.make
+            raise UsageError(
+                f"env_wrapper wraps a single-agent Gymnasium env and would have no effect on the multi-agent env "
+                f"{self.env_name.gym_id} (in {where}); remove it, or wrap the VecEnv with vec_env_wrapper"
+            )
         return hyperparams, saved_hyperparams
 
     def _trial_hyperparameters(self, trial_id: int) -> dict[str, Any]:
@@ -237,7 +254,8 @@ class MultiAgentExperimentManager(ExperimentManager):
             raise UsageError(f"--trial-id {trial_id}: the {where} has {shown}")
         params = study.trials[numbers.index(trial_id)].params
         print(f"Loading the hyperparameters of trial {trial_id} of {where}")
-        return HYPERPARAMS_CONVERTER[self.algo](params)
+        # A study may come from someone else (a shared database): its parameters are data, never code RL Zoo evaluates
+        return read_as_data(HYPERPARAMS_CONVERTER[self.algo](params), f"trial {trial_id} of the {where}")
 
     def _save_config(self, saved_hyperparams: dict[str, Any]) -> None:
         # The --storage password is not written into args.yml (command.txt gets the masked command line, see run_train)
@@ -339,11 +357,28 @@ class MultiAgentExperimentManager(ExperimentManager):
         try:
             super().learn(_ContinuedLearning(model) if self.continue_training else model)  # type: ignore[arg-type]
         except (EOFError, ConnectionError) as error:
-            # An env worker process ended (killed, out of memory): stop as Ctrl-C does, and save what was learnt
-            print(
+            # An env worker process ended (killed, out of memory): stop as Ctrl-C does, save what was learnt (RL Zoo's
+            # save_trained_model follows), then end with EXIT_ENV_WORKER_ENDED
+            self._stopped = (
                 f"An env worker process ended ({type(error).__name__}: {error}): training stopped at timestep "
                 f"{model.num_timesteps}; the model is saved"
             )
+            print(self._stopped)
+
+    def _maybe_normalize(self, env: VecEnv, eval_env: bool) -> VecEnv:
+        # RL Zoo unpickles <folder of -i>/<env>/vecnormalize.pkl (also without -i: ./<env>/vecnormalize.pkl); here it is
+        # read with the restricted unpickler, and only beside the model given with -i
+        path = os.path.join(os.path.dirname(self.trained_agent), str(self.env_name), "vecnormalize.pkl")
+        if not (self.trained_agent and os.path.exists(path)):
+            with _no_saved_statistics(self):
+                return super()._maybe_normalize(env, eval_env)
+        print("Loading saved VecNormalize stats")
+        env = load_vec_normalize(path, env)
+        if eval_env:
+            # Deactivate training and reward normalization
+            env.training = False
+            env.norm_reward = False
+        return env
 
     def save_trained_model(self, model: BaseAlgorithm) -> None:
         # As RL Zoo's, with every file written atomically (MADDPG's own saves are; other algorithms' are made so here)
@@ -357,6 +392,8 @@ class MultiAgentExperimentManager(ExperimentManager):
             vec_normalize = model.get_vec_normalize_env()
             assert vec_normalize is not None
             atomic_save(lambda file: pickle.dump(vec_normalize, file), os.path.join(self.params_path, "vecnormalize.pkl"))
+        if self._stopped is not None:
+            raise TrainingStopped(self._stopped, EXIT_ENV_WORKER_ENDED)
 
     def _preprocess_hyperparams(
         self, hyperparams: dict[str, Any]
@@ -424,8 +461,10 @@ class MultiAgentExperimentManager(ExperimentManager):
         try:
             super().hyperparameters_optimization()
         except ValueError as error:
-            # RL Zoo asks for the best trial even when none has completed (every trial of the study pruned or failed)
-            if "No trials are completed yet" not in str(error):
+            # RL Zoo asks for the best trial even when none has completed (every trial of the study pruned or failed,
+            # or SIGTERM during the first): Optuna's in-memory storage says so, its database storage "Record does not
+            # exist."
+            if not any(message in str(error) for message in ("No trials are completed yet", "Record does not exist")):
                 raise
             print(f"No trial of the study {self.study_name!r} has completed yet (all were pruned or failed): no best trial")
         finally:
@@ -494,6 +533,21 @@ class MultiAgentExperimentManager(ExperimentManager):
         return _wrap_like_rl_zoo(
             env, self.vec_env_wrapper, self.frame_stack, lambda venv: self._maybe_normalize(venv, eval_env)
         )
+
+
+@contextmanager
+def _no_saved_statistics(manager: ExperimentManager) -> Iterator[None]:
+    """
+    RL Zoo's ``_maybe_normalize`` looks for saved statistics beside ``trained_agent`` (beside ``""``: in the current
+    folder): it sees ``os.devnull`` instead, a file with no statistics beside it, while it runs.
+
+    :param manager: the experiment manager
+    """
+    trained_agent, manager.trained_agent = manager.trained_agent, os.devnull
+    try:
+        yield
+    finally:
+        manager.trained_agent = trained_agent
 
 
 class _ContinuedLearning:
@@ -610,7 +664,7 @@ def create_multiagent_test_env(
         path = os.path.join(stats_path, "vecnormalize.pkl")
         if not os.path.exists(path):
             raise UsageError(f"VecNormalize statistics {path} not found")
-        venv = VecNormalize.load(path, venv)
+        venv = load_vec_normalize(path, venv)
         venv.training = False
         venv.norm_reward = False
         return venv

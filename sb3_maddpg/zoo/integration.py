@@ -66,12 +66,14 @@ def run_train(argv: list[str]) -> None:
     RL Zoo's ``train`` (also ``-optimize``) with the given command-line arguments.
 
     :param argv: arguments as for ``python -m rl_zoo3.train``
+    :raises TrainingStopped: after the final save, when SIGTERM or an env worker process that ended stopped the run
     """
     import sys
 
     register_with_rl_zoo()
     import rl_zoo3.train
 
+    from sb3_maddpg.zoo.registry import EXIT_SIGTERM, TrainingStopped
     from sb3_maddpg.zoo.storage import mask_password
 
     saved, saved_orig = sys.argv, getattr(sys, "orig_argv", None)
@@ -80,9 +82,15 @@ def run_train(argv: list[str]) -> None:
         # RL Zoo writes the command line into command.txt and the study: without the --storage password
         sys.orig_argv = [mask_password(arg) for arg in saved_orig]
     # SIGTERM (what SLURM and most schedulers send at a time limit) stops training as Ctrl-C does: RL Zoo then saves
-    # the model (and, with --save-replay-buffer, the replay buffer) before the process ends.
+    # the model (and, with --save-replay-buffer, the replay buffer) before the process ends, with EXIT_SIGTERM.
+    received: list[int] = []
+
+    def stop(signum: int, frame: Any) -> None:
+        received.append(signum)
+        raise KeyboardInterrupt
+
     in_main_thread = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, signal.default_int_handler) if in_main_thread else None
+    previous = signal.signal(signal.SIGTERM, stop) if in_main_thread else None
     try:
         rl_zoo3.train.train()
     finally:
@@ -91,6 +99,8 @@ def run_train(argv: list[str]) -> None:
             sys.orig_argv = saved_orig
         if in_main_thread:
             signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+    if received:
+        raise TrainingStopped("stopped by SIGTERM before the end of the run; what was done is saved", EXIT_SIGTERM)
 
 
 def run_enjoy(argv: list[str]) -> None:

@@ -20,6 +20,26 @@ class UsageError(ValueError):
     """Bad input from the user (config, env id, env kwargs, paths): the command line prints it without a traceback."""
 
 
+# Exit statuses of a train or optimize run stopped before its end, after its final save: a scheduler can tell them
+# from a finished run (status 0). SIGTERM's is the shell's status of a process ended by SIGTERM (128 + 15).
+EXIT_SIGTERM = 143
+EXIT_ENV_WORKER_ENDED = 3
+
+
+class TrainingStopped(Exception):
+    """
+    A ``train`` or ``optimize`` run stopped before its end (SIGTERM, an env worker process that ended), once the
+    model (or the study's report) is saved: the command prints the message and exits with ``exit_status``.
+
+    :param message: what stopped the run
+    :param exit_status: ``EXIT_SIGTERM`` or ``EXIT_ENV_WORKER_ENDED``
+    """
+
+    def __init__(self, message: str, exit_status: int) -> None:
+        super().__init__(message)
+        self.exit_status = exit_status
+
+
 @dataclass(frozen=True)
 class MultiAgentEnvSpec:
     """

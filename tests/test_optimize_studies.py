@@ -165,3 +165,49 @@ def test_sigterm_during_the_first_trial_ends_with_the_report(tmp_path: Path, mon
     out, err = capsys.readouterr()
     assert "No trial of the study 'stopped' has completed yet" in out and "trial 0: FAIL" in out, out
     assert "stopped by SIGTERM" in err and "Traceback" not in err
+
+
+def _dead_pid() -> int:
+    """The process id of a process that has ended."""
+    import subprocess
+
+    process = subprocess.Popen([sys.executable, "-c", "pass"])
+    process.wait()
+    return process.pid
+
+
+def _journal_study(path: Path, name: str = "shared") -> optuna.Study:
+    journal = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(str(path)))
+    return optuna.create_study(storage=journal, study_name=name, direction="maximize", load_if_exists=True)
+
+
+def test_on_a_journal_file_only_the_trials_of_dead_workers_of_this_machine_are_failed(tmp_path: Path) -> None:
+    import socket
+
+    study = _journal_study(tmp_path / "optuna.log")
+    host = socket.gethostname()
+    workers = [f"{host}:{_dead_pid()}", f"{host}:{__import__('os').getpid()}", "another-machine:1", "no worker"]
+    for worker in workers:
+        trial = study.ask({"x": optuna.distributions.FloatDistribution(0.0, 1.0)})
+        trial.set_user_attr("worker", worker)
+    assert storage.fail_dead_workers_trials(study) == [0]
+    states = [trial.state for trial in study.get_trials(deepcopy=False)]
+    running, failed, waiting = (optuna.trial.TrialState.RUNNING, optuna.trial.TrialState.FAIL, optuna.trial.TrialState.WAITING)
+    assert states == [failed, running, running, running, waiting]
+    retry = study.get_trials(deepcopy=False)[-1]
+    assert retry.user_attrs["failed_trial"] == 0 and retry.system_attrs["fixed_params"] == study.trials[0].params
+    assert storage.fail_dead_workers_trials(study) == []  # nothing more to fail
+
+
+def test_a_dead_workers_trial_on_a_journal_file_does_not_count(tmp_path: Path, monkeypatch, capsys) -> None:
+    """--max-total-trials 1 with a killed worker's trial left RUNNING: this worker still runs its trial."""
+    import socket
+
+    monkeypatch.chdir(tmp_path)
+    study = _journal_study(tmp_path / "optuna.log")
+    trial = study.ask()
+    trial.set_user_attr("worker", f"{socket.gethostname()}:{_dead_pid()}")
+    argv = ["optimize", *TINY, "-n", "40", "--storage", str(tmp_path / "optuna.log"), "--study-name", "shared"]
+    assert main([*argv, "--max-total-trials", "1", "--eval-episodes", "1", "--n-evaluations", "1"]) == 0
+    states = [trial.state for trial in _journal_study(tmp_path / "optuna.log").get_trials(deepcopy=False)]
+    assert states[0] == optuna.trial.TrialState.FAIL and optuna.trial.TrialState.COMPLETE in states, states

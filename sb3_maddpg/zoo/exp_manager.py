@@ -1,5 +1,6 @@
 """RL Zoo's ``ExperimentManager`` and ``create_test_env`` taught to build multi-agent VecEnvs."""
 
+import contextlib
 import inspect
 import os
 import pickle
@@ -42,6 +43,7 @@ from sb3_maddpg.zoo.storage import (
     MAX_RETRY,
     beyond_max_total_trials,
     create_shared_study,
+    fail_dead_workers_trials,
     is_database_url,
     mask_password,
 )
@@ -457,6 +459,11 @@ class MultiAgentExperimentManager(ExperimentManager):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
                 optuna.storages.fail_stale_trials(study)
+        elif url is not None and url.endswith(".log") and os.path.isfile(url):
+            # A journal file keeps no heartbeat: the trials of workers of this machine that died are failed here
+            journal = optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(url))
+            with contextlib.suppress(KeyError):  # no study of that name yet
+                fail_dead_workers_trials(optuna.load_study(storage=journal, study_name=self.study_name))
         self._worker_trials = []
         try:
             super().hyperparameters_optimization()
@@ -487,6 +494,9 @@ class MultiAgentExperimentManager(ExperimentManager):
     def objective(self, trial: Any) -> float:
         self._worker_trials.append(trial)
         trial.set_user_attr("worker", self.worker_name)
+        if isinstance(trial.study._storage, optuna.storages.JournalStorage):
+            # Before counting the running trials: those of workers that died since this one started are not running
+            fail_dead_workers_trials(trial.study)
         if beyond_max_total_trials(trial, self.max_total_trials):
             # Not run: recorded as failed (a NaN value), which RL Zoo's count leaves out, and this worker stops
             trial.set_user_attr("not_run", f"--max-total-trials {self.max_total_trials} reached by other workers")

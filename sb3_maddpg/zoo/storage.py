@@ -8,8 +8,10 @@ worker processes (on one machine or many) may attempt at the same moment.
   on several machines.
 """
 
+import os
 import random
 import re
+import socket
 import time
 from typing import Any
 
@@ -159,3 +161,45 @@ def beyond_max_total_trials(trial: Any, max_total_trials: int | None) -> bool:
     counted = (TrialState.COMPLETE, TrialState.PRUNED, TrialState.RUNNING)
     earlier = [other for other in trial.study.get_trials(deepcopy=False, states=counted) if other.number < trial.number]
     return len(earlier) >= max_total_trials
+
+
+def _process_exists(pid: int) -> bool:
+    """Whether a process of this id runs on this machine (signal 0 checks without sending anything)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process: it exists
+        return True
+    return True
+
+
+def fail_dead_workers_trials(study: Any) -> list[int]:
+    """
+    On a journal file storage (``--storage PATH.log``, workers on one machine), which keeps no heartbeat: fail the
+    RUNNING trials whose worker (the ``host:pid`` of the trial's ``worker`` attribute) ran on this machine and no longer
+    exists, so that a killed worker's trial does not stay RUNNING for ever and count towards ``--max-total-trials``.
+    Its parameters are enqueued once more, as ``RetryHeartbeatStaleTrialCallback`` does on a database storage (the
+    retry names the failed trial in ``failed_trial``). A trial of a worker on another machine, or of a process id
+    reused since, is left as it is.
+
+    :param study: the Optuna study
+    :return: the numbers of the trials failed
+    """
+    from optuna.exceptions import UpdateFinishedTrialError
+    from optuna.trial import TrialState
+
+    host = socket.gethostname()
+    failed = []
+    for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        worker_host, _, pid = str(trial.user_attrs.get("worker", "")).rpartition(":")
+        if worker_host != host or not pid.isdigit() or _process_exists(int(pid)):
+            continue
+        try:
+            study._storage.set_trial_state_values(trial._trial_id, state=TrialState.FAIL)
+        except (UpdateFinishedTrialError, RuntimeError):
+            continue  # another worker failed it first
+        if "failed_trial" not in trial.user_attrs:  # retried once at most
+            study.enqueue_trial(trial.params, user_attrs={"failed_trial": trial.number})
+        failed.append(trial.number)
+    return failed

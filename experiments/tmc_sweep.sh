@@ -10,7 +10,8 @@
 # A quick check of the pipeline: NS=3 SEEDS=0 TIMESTEPS=200 EPISODES=1 OUT=/tmp/tmc bash experiments/tmc_sweep.sh train
 # PARAMS overrides entries of the YAML entry as RL Zoo's -params (e.g. the attention critic:
 # PARAMS="policy_kwargs:\"dict(n_quantiles=1, critic='attention', features_extractor_kwargs=...)\""); TAG prefixes the
-# runs' names, so that runs with other PARAMS can share $OUT.
+# runs' names, so that runs with other PARAMS can share $OUT. Since 2026-12-07 the entry uses the attention critic; the
+# joint critic's rows of docs/results.md: PARAMS="policy_kwargs:\"dict(n_quantiles=1,features_extractor_kwargs=dict(padding=1,coord_channels=True,batch_norm_eps=1e-3,position_channel=1))\"".
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/tmc}

@@ -32,6 +32,8 @@ COLUMNS = (
     ("coverage_mean", "c_T", 3),
     ("fairness_mean", "f_T", 3),
     ("energy_efficiency_mean", "η_T", 3),
+    ("zone_steps_mean", "zone steps / episode", 2),
+    ("zone_losses_mean", "zone losses / episode", 2),
 )
 
 
@@ -70,8 +72,12 @@ def mean_std(values: list[float], digits: int) -> str:
 
 
 def table(rows: dict[str, dict[int, dict[str, float]]], variants: list[str], labels: list[str]) -> str:
-    """The markdown table: one row per variant, mean ± std over its seeds, then each seed's mean and worst decile."""
-    head = ["variant", "seeds", *(title for _, title, _ in COLUMNS), "mean / worst decile by seed"]
+    """
+    The markdown table: one row per variant, mean ± std over its seeds, then each seed's mean and worst decile. Columns
+    that no evaluation reports (the UAV metrics on risky_reach_v0, its zone counts on the UAV tasks) are left out.
+    """
+    columns = [column for column in COLUMNS if any(column[0] in row for seeds in rows.values() for row in seeds.values())]
+    head = ["variant", "seeds", *(title for _, title, _ in columns), "mean / worst decile by seed"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for variant, label in zip(variants, labels, strict=True):
         by_seed = rows.get(variant, {})
@@ -81,7 +87,7 @@ def table(rows: dict[str, dict[int, dict[str, float]]], variants: list[str], lab
         seeds = sorted(by_seed)
         cells = [
             mean_std([by_seed[s][key] for s in seeds], digits) if all(key in by_seed[s] for s in seeds) else ""
-            for key, _, digits in COLUMNS
+            for key, _, digits in columns
         ]
         per_seed = ", ".join(f"{by_seed[s]['return_mean']:.1f} / {by_seed[s]['return_worst_decile']:.1f}" for s in seeds)
         lines.append(f"| {label} | {', '.join(map(str, seeds))} | " + " | ".join(cells) + f" | {per_seed} |")

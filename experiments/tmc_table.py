@@ -9,7 +9,8 @@ paper's eta_T at that N.
 Reads ``<out>/baselines/n<N>/results.csv``, ``<out>/eval/[<tag>_]n<N>_s<seed>/results.csv`` (the ``evaluate``
 command's) and ``<out>/train_[<tag>_]n<N>_s<seed>.seconds`` of every folder given (the runs of one sweep may lie in
 several). Runs with a tag (``TAG`` of tmc_sweep.sh, e.g. ``attn`` for the attention critic) are rows and lines of their
-own, named after it.
+own, named after it; so are the best-of-checkpoints rows of ``<out>/best_of_k/[<tag>_]n<N>_s<seed>/results.csv``
+(``python -m sb3_maddpg select-checkpoint``'s folders): "<method> <tag> best of K".
 """
 
 import argparse
@@ -51,25 +52,32 @@ def main() -> None:
             etas[f"{row['method']} (here)"][int(folder.name[1:])] = eta
 
     # Trained runs: one seed's value is its mean over the episodes; the row is mean ± std over seeds.
-    trained: dict[tuple[str, int], list[dict[str, str]]] = defaultdict(list)  # (tag, N) -> one row per seed
+    # The best-of-checkpoints rows (select-checkpoint's folders) are rows of their own: "<method> <tag> best of K".
+    trained: dict[tuple[str, int], list[dict[str, str]]] = defaultdict(list)  # (method, N) -> one row per seed
     seconds: dict[tuple[str, int], list[float]] = defaultdict(list)
-    for folder in [folder for out in args.out for folder in (out / "eval").glob("*n*_s*")]:
-        match = re.fullmatch(r"(?:(\w+)_)?n(\d+)_s(\d+)", folder.name)
-        if match and (folder / "results.csv").is_file():
-            key = (match.group(1) or "", int(match.group(2)))
-            trained[key] += [r for r in read_rows(folder / "results.csv") if r["method"] != "random"]
-            timing = folder.parent.parent / f"train_{folder.name}.seconds"
-            if timing.is_file():
-                seconds[key].append(float(timing.read_text()))
-    for tag, n in sorted(trained, key=lambda key: (key[1], key[0])):
-        rows, timings = trained[tag, n], seconds[tag, n]
+    for kind in ("eval", "best_of_k"):
+        for folder in [folder for out in args.out for folder in (out / kind).glob("*n*_s*")]:
+            match = re.fullmatch(r"(?:(\w+)_)?n(\d+)_s(\d+)", folder.name)
+            if not (match and (folder / "results.csv").is_file()):
+                continue
+            tag, n = match.group(1) or "", int(match.group(2))
+            if kind == "eval":
+                method = f"maddpg {tag}".strip()
+                trained[method, n] += [r for r in read_rows(folder / "results.csv") if r["method"] != "random"]
+                timing = folder.parent.parent / f"train_{folder.name}.seconds"
+                if timing.is_file():
+                    seconds[method, n].append(float(timing.read_text()))
+            else:
+                best = [r for r in read_rows(folder / "results.csv") if r["method"].startswith("best of")]
+                trained[f"maddpg {tag} best of K".replace("  ", " "), n] += best
+    for method, n in sorted(trained, key=lambda key: (key[1], key[0])):
+        rows, timings = trained[method, n], seconds[method, n]
         cells = []
         for key in METRICS:
             values = np.array([float(r[f"{key}_mean"]) for r in rows])
             cells.append(f"{values.mean():.3f} ± {values.std():.3f}")
         minutes = f"{np.mean(timings) / 60:.1f}" if timings else ""
         seed_etas = np.array([float(r["energy_efficiency_mean"]) for r in rows])
-        method = f"{rows[0]['method']} {tag}".strip()
         # one line for each trained method whatever the seeds per N (the table gives them)
         etas[f"{method} (here, mean ± std over seeds)"][n] = (float(seed_etas.mean()), float(seed_etas.std()))
         by_seed = ", ".join(f"{eta:.3f}" for eta in seed_etas)

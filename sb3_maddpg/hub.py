@@ -267,6 +267,7 @@ def build_repo_folder(
         timesteps=int(data.get("num_timesteps") or 0),
         hyperparams=config,
         evaluation=evaluation,
+        model_file=Path(model_path).name,
         evaluate_flags=f"--episodes {n_episodes} --seed {seed}" + _env_kwargs_flag(env_kwargs),
         replay=(out / REPLAY).is_file(),
     )
@@ -336,6 +337,7 @@ def model_card(
     timesteps: int,
     hyperparams: dict[str, Any],
     evaluation: dict[str, Any],
+    model_file: str,
     evaluate_flags: str,
     replay: bool,
 ) -> str:
@@ -351,6 +353,7 @@ def model_card(
     :param timesteps: timesteps the model was trained for
     :param hyperparams: the run's hyperparameters (its ``config.yml``)
     :param evaluation: what ``evaluate_and_report`` returned
+    :param model_file: the name of the model file in its run folder (the final model, ``best_model.zip``, a checkpoint)
     :param evaluate_flags: the ``evaluate`` flags that give the same table
     :param replay: whether the repository has ``replay.gif``
     :return: the card
@@ -379,7 +382,7 @@ def model_card(
         "## Evaluation",
         "",
         "Deterministic actions, mean ± std over the episodes (episode e of every method seeded alike): the table of "
-        f"`python -m sb3_maddpg evaluate --model <run>/{env_id}.zip {evaluate_flags}`, whose files and figures are in "
+        f"`python -m sb3_maddpg evaluate --model <run>/{model_file} {evaluate_flags}`, whose files and figures are in "
         f"`{EVALUATION}/`.",
         "",
         evaluation["table"],

@@ -235,6 +235,37 @@ def require_rl_zoo(command: str) -> None:
         ) from error
 
 
+def find_trained_model(args: argparse.Namespace) -> str:
+    """
+    The model RL Zoo's ``enjoy`` loads for these flags (``rl_zoo3.utils.get_model_path``), once its run's files are
+    checked: RL Zoo reads the run's config.yml and args.yml with YAML's unsafe loader, evaluates a normalize string,
+    imports the wrappers they name and unpickles vecnormalize.pkl, so each is checked first (every layout, --exp-id -1
+    too).
+
+    :param args: ``folder``, ``algo``, ``env``, ``exp_id``, ``load_best``, ``load_checkpoint``, ``load_last_checkpoint``
+    :return: the model file
+    """
+    from huggingface_sb3 import EnvironmentName
+    from rl_zoo3.utils import get_model_path
+
+    from sb3_maddpg.zoo.run_files import check_run_folder
+
+    try:
+        _, model_path, log_path = get_model_path(
+            args.exp_id,
+            args.folder,
+            args.algo,
+            EnvironmentName(args.env),
+            args.load_best,
+            args.load_checkpoint,
+            args.load_last_checkpoint,
+        )
+    except (AssertionError, ValueError) as error:
+        raise UsageError(f"no trained model to load: {error} (train one first, or pass -f LOG_FOLDER)") from error
+    check_run_folder(os.path.join(log_path, str(EnvironmentName(args.env))))
+    return model_path
+
+
 def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     """
     Check what can be checked before RL Zoo runs and add this command's defaults.
@@ -273,26 +304,7 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         if not _has_flag(argv, "-f", "--folder"):
             # RL Zoo's default folder downloads models from the Hugging Face hub; this project's runs are in logs/.
             argv += ["-f", args.folder]
-        from huggingface_sb3 import EnvironmentName
-        from rl_zoo3.utils import get_model_path
-
-        from sb3_maddpg.zoo.run_files import check_run_folder
-
-        try:
-            _, model_path, log_path = get_model_path(
-                args.exp_id,
-                args.folder,
-                args.algo,
-                EnvironmentName(args.env),
-                args.load_best,
-                args.load_checkpoint,
-                args.load_last_checkpoint,
-            )
-        except (AssertionError, ValueError) as error:
-            raise UsageError(f"no trained model to load: {error} (train one first, or pass -f LOG_FOLDER)") from error
-        # RL Zoo reads the run's config.yml and args.yml with YAML's unsafe loader, evaluates a normalize string, imports
-        # the wrappers they name and unpickles vecnormalize.pkl: each is checked first (every layout, --exp-id -1 too)
-        check_run_folder(os.path.join(log_path, str(EnvironmentName(args.env))))
+        model_path = find_trained_model(args)
         if args.algo in MULTIAGENT_ALGOS and is_multiagent_env(args.env):
             _check_model_fits_env(model_path, args.env, env_kwargs)
         return argv
@@ -510,6 +522,123 @@ def run_select_checkpoint(args: argparse.Namespace) -> None:
         print(path)
 
 
+# ---------------------------------------------------------------------------------------------------------------------
+# The Hugging Face Hub (sb3_maddpg.hub): RL Zoo's push_to_hub and load_from_hub, with their flags
+# ---------------------------------------------------------------------------------------------------------------------
+HUB_COMMANDS = ("push-to-hub", "load-from-hub")
+
+
+def add_hub_commands(commands: Any) -> None:
+    """
+    :param commands: the subparsers of :func:`build_parser`
+    """
+    push = commands.add_parser(
+        "push-to-hub",
+        help="evaluate a trained run and upload it to the Hugging Face Hub with a model card (RL Zoo's push_to_hub)",
+        description="Find the run's model as enjoy does, evaluate it as evaluate does, write the repository's folder "
+        "(model, config.yml, args.yml, env_kwargs.yml, train_eval_metrics.zip, evaluation/, replay.gif, README.md "
+        "with evaluate's table) and upload it. Needs the zoo and hub extras and a token (hf auth login or HF_TOKEN).",
+    )
+    load = commands.add_parser(
+        "load-from-hub",
+        help="download a model from the Hugging Face Hub into an RL Zoo run folder (RL Zoo's load_from_hub)",
+        description="Download <organization>/<algo>-<env> (through the Hub's cache: HF_HUB_OFFLINE=1 reads a cached "
+        "copy), read every file without running code, and lay it out as <folder>/<algo>/<env>_<N>/ for enjoy and "
+        "evaluate. Needs the hub extra.",
+    )
+    for parser in (push, load):
+        parser.add_argument("--algo", default=DEFAULT_ALGO, choices=MULTIAGENT_ALGOS, help=f"default: {DEFAULT_ALGO}")
+        parser.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
+        parser.add_argument("-f", "--folder", default="logs", help="log folder (default: logs)")
+        parser.add_argument("-orga", "--organization", required=True, help="the Hub user or organisation")
+        parser.add_argument("-name", "--repo-name", help="repository name (default: <algo>-<env>)")
+        parser.add_argument("--verbose", type=int, default=1, help="0: quiet, 1: progress")
+    push.add_argument("--exp-id", type=int, default=0, help="run number (default: 0, the latest; -1: no run folder)")
+    load.add_argument("--exp-id", type=int, default=0, help="run number (default: 0, a new one; -1: no run folder)")
+    push.add_argument("--load-best", action="store_true", help="push best_model.zip instead of the final model")
+    push.add_argument("--load-checkpoint", type=int, help="push the checkpoint of this many timesteps")
+    push.add_argument("--load-last-checkpoint", action="store_true", help="push the last checkpoint")
+    push.add_argument("-m", "--commit-message", default="Upload a team trained with sb3_maddpg", help="commit message")
+    push.add_argument("--episodes", type=int, default=10, help="evaluation episodes per method (default: 10)")
+    push.add_argument("--seed", type=int, default=0, help="seed of the first evaluation episode (default: 0)")
+    push.add_argument("--env-kwargs", nargs="+", metavar="KEY:VALUE", help="env arguments over the run's")
+    push.add_argument("--device", default="auto", help="device of the model (default: auto)")
+    push.add_argument("--no-render", action="store_true", help="no replay.gif")
+    push.add_argument("--local-dir", help="where the repository's folder is written (default: hub/<repo name>)")
+    push.add_argument("--dry-run", action="store_true", help="write the repository's folder only, upload nothing")
+    push.add_argument("--private", action="store_true", help="create the repository private")
+    load.add_argument("--force", action="store_true", help="replace the run folder if it exists")
+    load.add_argument("--revision", help="branch, tag or commit (default: main)")
+    load.add_argument("--cache-dir", help="the Hub cache (default: HF_HUB_CACHE, else HF_HOME/hub)")
+
+
+def run_push_to_hub(args: argparse.Namespace) -> None:
+    """
+    The ``push-to-hub`` command.
+
+    :param args: parsed arguments
+    """
+    from sb3_maddpg import hub
+    from sb3_maddpg.evaluation.report import ModelEnvMismatchError
+
+    require_rl_zoo("push-to-hub")  # the run is found as enjoy finds it
+    hub.require_huggingface_hub()
+    _check_env(args.env, args.algo)
+    if args.episodes < 1:
+        raise UsageError(f"--episodes must be >= 1, got {args.episodes}")
+    env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs")
+    if env_kwargs is not None:
+        check_env_kwargs(args.env, env_kwargs, flag="--env-kwargs")
+    model_path = find_trained_model(args)
+    repo = hub.repo_id(args.organization, args.algo, args.env, args.repo_name)
+    local_dir = args.local_dir or os.path.join("hub", repo.split("/", 1)[1])
+    _check_writable(local_dir, "--local-dir")
+    url = None if args.dry_run else hub.create_repo(repo, private=args.private)
+    try:
+        files = hub.build_repo_folder(
+            model_path,
+            args.algo,
+            args.env,
+            local_dir,
+            repo,
+            n_episodes=args.episodes,
+            seed=args.seed,
+            env_kwargs=env_kwargs,
+            device=args.device,
+            gif=not args.no_render,
+            verbose=args.verbose,
+        )
+    except ModelEnvMismatchError as error:
+        raise UsageError(f"{model_path}: {error}") from error
+    if args.dry_run:
+        print(f"Dry run: {len(files)} files of {repo} written to {local_dir}, nothing uploaded")
+        return
+    hub.upload_folder(local_dir, repo, args.commit_message)
+    print(f"Pushed {len(files)} files to {url}")
+
+
+def run_load_from_hub(args: argparse.Namespace) -> None:
+    """
+    The ``load-from-hub`` command.
+
+    :param args: parsed arguments
+    """
+    from sb3_maddpg import hub
+
+    hub_module = hub.require_huggingface_hub()
+    _check_writable(args.folder, "-f/--folder")
+    repo = hub.repo_id(args.organization, args.algo, args.env, args.repo_name)
+    if args.verbose:
+        print(f"Downloading {repo} from {hub_module.constants.ENDPOINT} (or the Hub's cache)")
+    model_path = hub.download_run(
+        repo, args.algo, args.env, args.folder, args.exp_id, args.force, args.revision, args.cache_dir
+    )
+    print(f"Saved to {model_path.parent}")
+    if args.verbose:
+        print(f"Watch it:    python -m {PROG} enjoy --algo {args.algo} --env {args.env} -f {args.folder}")
+        print(f"Evaluate it: python -m {PROG} evaluate --model {model_path}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """
     :return: the command's parser (``train``, ``optimize`` and ``enjoy`` hand their arguments to RL Zoo's parsers)
@@ -613,6 +742,7 @@ def build_parser() -> argparse.ArgumentParser:
     select.add_argument("--env-kwargs", nargs="+", metavar="KEY:VALUE", help="env arguments over the run's")
     select.add_argument("--device", default="auto", help="device of the models (default: auto)")
     select.add_argument("--out", default=os.path.join("results", "checkpoints"), help="output folder")
+    add_hub_commands(commands)
     return parser
 
 
@@ -647,6 +777,10 @@ def main(argv: list[str] | None = None) -> int:
             run_plot(args)
         elif args.command == "select-checkpoint":
             run_select_checkpoint(args)
+        elif args.command == "push-to-hub":
+            run_push_to_hub(args)
+        elif args.command == "load-from-hub":
+            run_load_from_hub(args)
         else:
             parser.print_help(sys.stderr)
             return 2
@@ -654,7 +788,9 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"{PROG} {command}: {stopped}\n")
         return stopped.exit_status
     except UsageError as error:
-        _fail(command if command in (*ZOO_COMMANDS, "evaluate", "plot", "select-checkpoint") else None, str(error))
+        _fail(
+            command if command in (*ZOO_COMMANDS, "evaluate", "plot", "select-checkpoint", *HUB_COMMANDS) else None, str(error)
+        )
     return 0
 
 

@@ -11,15 +11,32 @@ average and buys a better worst case.
 Shapes (N UAVs): ``positions`` (N, 2) float64, ``active`` (N,) bool, ``links`` (N, N) bool. The random numbers are
 passed in (drawn by the core from the env's own generator, a fixed number per step), so every function here is a
 pure array function that can be checked by hand.
+
+:class:`HazardHook` composes them into the core's step: a core whose config switches a hazard on holds one and calls it
+at the phases a hazard touches (grounding, perturbing after the move, the crash's energy, the links, the penalties, the
+counters); a calm core holds none and its step runs none of this.
 """
 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-__all__ = ["HAZARD_COUNTS", "crash_drain", "gust_push", "in_zone", "push_within_walls", "storm_strikes", "surviving_links"]
+if TYPE_CHECKING:
+    from .config import UAVCoverageConfig
+
+__all__ = [
+    "HAZARD_COUNTS",
+    "HazardHook",
+    "crash_drain",
+    "gust_push",
+    "in_zone",
+    "push_within_walls",
+    "storm_strikes",
+    "surviving_links",
+]
 
 #: The per-agent hazard counters in the infos (only when a hazard is switched on).
 HAZARD_COUNTS = ("gusts", "crashes", "link_failures", "depletions")
@@ -123,3 +140,103 @@ def storm_strikes(
     :return: struck (N,) bool
     """
     return active & in_zone(positions, zone) & (draws < storm_prob)
+
+
+class HazardHook:
+    """
+    The hazards of a core's config in its step: what gusts, crashes, link failures and the storm do at each phase.
+
+    The hook keeps no state of its own: what a hazard leaves behind (grounded steps left, counters, the last gusts and
+    crashes) is the core's, so a snapshot of the core holds it. The random draws come from the core's generator, a
+    fixed number per step and switched-on hazard, in the order gusts, storm, link failures.
+
+    :param config: the core's config, with ``hazards`` on
+    """
+
+    def __init__(self, config: UAVCoverageConfig) -> None:
+        self.config = config
+
+    def ground(self, core: Any) -> np.ndarray:
+        """
+        Start of a step: a grounded UAV sits it out and counts one of its grounded steps.
+
+        :return: (N,) bool, the UAVs grounded during this step
+        """
+        grounded = core.grounded_steps_left > 0
+        core.grounded_steps_left[grounded] -= 1
+        return grounded
+
+    def perturb(self, core: Any, step: Any) -> None:
+        """
+        After the UAVs' own moves: gusts push the UAVs they hit (one thrown out of the area stops at the boundary and
+        crashes), then the storm strikes UAVs inside its zone where they are now (a crash without the wall). The UAVs
+        downed are grounded from the next step on, for k steps. Sets ``step.hit``, ``step.crashed``, ``step.downed``.
+        """
+        config = self.config
+        crashed = hit = struck = None
+        if config.gust_prob > 0.0:
+            # three draws per UAV and step whether or not it is hit, so the stream stays aligned
+            hit, push = gust_push(
+                core._rng.random((config.n_uavs, 3)),
+                step.active,
+                gust_prob=config.gust_prob,
+                gust_scale=config.gust_scale,
+                gust_tail=config.gust_tail,
+                map_size=config.map_size,
+            )
+            crashed = push_within_walls(core.positions, push, hit, config.map_size)
+            core.last_gust[...] = push
+        if config.storm_prob > 0.0:
+            # one draw per UAV and step
+            draws = core._rng.random(config.n_uavs)
+            struck = storm_strikes(draws, core.positions, step.active, zone=config.storm_zone, storm_prob=config.storm_prob)
+        downed = crashed if struck is None else struck if crashed is None else crashed | struck
+        if downed is not None:
+            core.last_crashed[...] = downed
+            core.grounded_steps_left[downed] = config.crash_ground_steps
+        step.hit, step.crashed, step.downed = hit, crashed, downed
+
+    def charge(self, core: Any, step: Any, spent: np.ndarray) -> None:
+        """A crash costs E_c more than the flight, never more than what is left: added to ``spent`` in place."""
+        if step.downed is not None:
+            spent += crash_drain(step.downed, core.energy - spent, self.config.crash_energy)
+
+    def fail_links(self, core: Any, step: Any, links: np.ndarray) -> np.ndarray:
+        """
+        Each link in range fails on its own with probability p_f (N x N draws); sets ``step.cut_off``, the UAVs whose
+        links all failed.
+
+        :return: the links that work
+        """
+        if self.config.link_failure_prob <= 0.0:
+            return links
+        n = self.config.n_uavs
+        working = surviving_links(links, core._rng.random((n, n)), self.config.link_failure_prob)
+        step.cut_off = links.any(axis=1) & ~working.any(axis=1)
+        return working
+
+    def penalize(self, step: Any, penalties: np.ndarray) -> np.ndarray:
+        """A gust's crash is charged the wall penalty p_w."""
+        if step.crashed is None:
+            return penalties
+        return penalties + self.config.wall_penalty * step.crashed
+
+    def charge_grounded(self, step: Any, rewards: np.ndarray) -> None:
+        """A grounded UAV's reward is -``reward_scale`` p_d (before clipping), in place."""
+        if self.config.grounded_penalty > 0.0:
+            rewards[step.grounded] = -self.config.reward_scale * self.config.grounded_penalty
+
+    def finish(self, core: Any, step: Any, flying: np.ndarray) -> None:
+        """
+        End of a step: a grounded UAV is not active until its grounded steps are over (it is not depleted); the
+        counters of gusts, crashes, link failures and depletions.
+        """
+        core.active &= core.grounded_steps_left == 0
+        counts = core.hazard_counts
+        if step.hit is not None:
+            counts["gusts"] += step.hit
+        if step.downed is not None:
+            counts["crashes"] += step.downed
+        if step.cut_off is not None:
+            counts["link_failures"] += step.cut_off
+        counts["depletions"] += step.active & ~flying

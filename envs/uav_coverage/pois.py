@@ -9,7 +9,12 @@ import os
 
 import numpy as np
 
-__all__ = ["lattice_pois", "load_poi_image", "pois_from_image"]
+from .validation import MAX_MAP_SIZE, check_int, check_points
+
+__all__ = ["MIN_POI_IMAGE_SIDE", "lattice_pois", "load_poi_image", "pois_from_image", "resolve_pois"]
+
+# The smallest side of a PoI image array: narrower arrays (a (K, 3) table, a 2 x 2 "image") are ambiguous
+MIN_POI_IMAGE_SIDE = 4
 
 
 def lattice_pois(map_size: int) -> np.ndarray:
@@ -98,3 +103,54 @@ def pois_from_image(image: np.ndarray, map_size: int, threshold: float, name: st
         raise ValueError(f"{name}: no cell of the image has a mean intensity above poi_threshold={threshold} of its maximum")
     # Row 0 is the top of the map, so image row i is the cell row y = L - 1 - i.
     return np.stack([cols + 0.5, (map_size - 1 - rows) + 0.5], axis=1).astype(np.float64)
+
+
+def resolve_pois(
+    pois: str | os.PathLike | np.ndarray | list, n_pois: int | None, map_size: int, threshold: float
+) -> tuple[str, np.ndarray | None, int | None]:
+    """
+    Read the env's ``pois`` and ``n_pois`` parameters.
+
+    :param pois: ``"grid"``, ``"uniform"``, an array (K, 2) of coordinates, an image path or a 2-D image array of at
+        least ``MIN_POI_IMAGE_SIDE`` pixels a side (other 2-D arrays are refused as ambiguous)
+    :param n_pois: the number of uniform PoIs (default L^2); only with ``pois="uniform"``
+    :param map_size: the map side L
+    :param threshold: ``poi_threshold``, for image PoIs
+    :return: the mode (``"grid"``, ``"uniform"``, ``"array"`` or ``"image"``), the PoIs (K, 2) (None for uniform ones,
+        drawn at the first reset) and the number of uniform PoIs (None for the other modes)
+    """
+    points: np.ndarray | None = None
+    n_uniform: int | None = None
+    if isinstance(pois, str) and pois in ("grid", "uniform"):
+        mode = pois
+        if pois == "uniform":
+            n_uniform = check_int("n_pois", map_size**2 if n_pois is None else n_pois, 1, MAX_MAP_SIZE**2)
+        else:
+            points = lattice_pois(map_size)
+    elif isinstance(pois, str | os.PathLike):
+        mode = "image"
+        points = pois_from_image(load_poi_image(pois), map_size, threshold, f"pois={os.fspath(pois)!r}")
+    else:
+        try:
+            array = np.asarray(pois, dtype=np.float64)
+        except (TypeError, ValueError) as error:
+            raise ValueError(
+                f"pois must be 'grid', 'uniform', an array (K, 2), an image path or a 2-D image array, got {pois!r}"
+            ) from error
+        # The rule: 2 columns are (x, y) coordinates; an image has at least MIN_POI_IMAGE_SIDE pixels on each side.
+        # A (K, 3) array (x, y, weight?) or a tiny image is neither: refused rather than guessed.
+        if array.ndim == 2 and array.shape[1] == 2:
+            mode = "array"
+            points = check_points("pois", array, None, map_size)
+        elif array.ndim == 2 and min(array.shape) >= MIN_POI_IMAGE_SIDE:
+            mode = "image"
+            points = pois_from_image(array, map_size, threshold, "pois image array")
+        else:
+            raise ValueError(
+                f"pois: an array must have shape (K, 2) (x, y coordinates) or (H, W) with H, W >= "
+                f"{MIN_POI_IMAGE_SIDE} (a grayscale image), got shape {array.shape}; weighted PoIs (x, y, weight) "
+                "are not supported"
+            )
+    if n_pois is not None and mode != "uniform":
+        raise ValueError(f"n_pois is only used with pois='uniform', got n_pois={n_pois!r} with pois={mode!r}")
+    return mode, points, n_uniform

@@ -9,14 +9,19 @@ per step.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 __all__ = [
     "REWARD_MODES",
     "cell_entropy",
     "coverage_credit",
+    "coverage_score",
     "covering_pairs",
     "energy_cost",
+    "energy_weighted_gain",
+    "jain_fairness",
     "report_reward",
     "team_metrics",
 ]
@@ -34,6 +39,29 @@ def covering_pairs(positions: np.ndarray, pois: np.ndarray, active: np.ndarray, 
     diff = pois[None, :, :] - positions[:, None, :]
     sq_dist = np.einsum("nkd,nkd->nk", diff, diff)
     return (sq_dist <= coverage_range**2) & active[:, None]
+
+
+def coverage_score(visits: np.ndarray, t: int, out: np.ndarray | None = None) -> np.ndarray:
+    """
+    The coverage scores c_t(k) = w(k) / t: the share of the t steps so far in which PoI k was covered.
+
+    :param visits: (..., K) w(k), the steps in which PoI k was covered
+    :param t: steps since reset, >= 1
+    :param out: where to write them (as ``np.divide``'s)
+    """
+    return np.divide(visits, t, out=out)
+
+
+def jain_fairness(score_sum: Any, square_sum: Any, n_pois: int) -> Any:
+    """
+    Jain's fairness index of K coverage scores, (sum_k c(k))^2 / (K sum_k c(k)^2), 0 where every score is 0.
+
+    :param score_sum: sum_k c(k), a number or an array
+    :param square_sum: sum_k c(k)^2, of the same shape
+    :param n_pois: K
+    :return: f, of that shape (it can exceed 1 by a rounding of the last bit)
+    """
+    return np.where(square_sum > 0.0, score_sum * score_sum / (n_pois * np.maximum(square_sum, 1e-300)), 0.0)
 
 
 def coverage_credit(covering: np.ndarray, coverage_scores: np.ndarray, fairness_coef: float) -> np.ndarray:
@@ -68,7 +96,19 @@ def report_reward(
     :param step_energy: the team's energy this step
     :param entropy: the entropy of the active UAVs' cells
     """
-    return fairness * score_gain / (step_energy + eps) + entropy_coef * entropy
+    return energy_weighted_gain(fairness, score_gain, step_energy, eps) + entropy_coef * entropy
+
+
+def energy_weighted_gain(fairness: Any, score_gain: Any, step_energy: Any, eps: float) -> Any:
+    """
+    The coverage term of the report's reward: f_t * (sum_k c_t(k) - sum_k c_{t-1}(k)) / (e + eps), numbers or arrays.
+
+    :param fairness: f_t
+    :param score_gain: the gain of the coverage scores' sum
+    :param step_energy: the energy e of the step
+    :param eps: epsilon
+    """
+    return fairness * score_gain / (step_energy + eps)
 
 
 def cell_entropy(positions: np.ndarray, active: np.ndarray, map_size: int) -> float:
@@ -111,7 +151,7 @@ def team_metrics(
     square_sum = float(np.dot(coverage_scores, coverage_scores))
     coverage = score_sum / k
     # Jain's index is <= 1 exactly; min() only removes a last-bit rounding excess.
-    fairness = min(score_sum * score_sum / (k * square_sum), 1.0) if square_sum > 0.0 else 0.0
+    fairness = min(float(jain_fairness(score_sum, square_sum, k)), 1.0)
     energy_ratio = total_energy_spent / (n_uavs * t * move_energy * max_distance)
     energy_efficiency = fairness * coverage / (energy_ratio + eps)
     return coverage, fairness, energy_ratio, energy_efficiency

@@ -45,7 +45,7 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
 
     :param render_mode: ``None`` or ``"rgb_array"``
     :param name: the env's name in ``metadata`` (the versioned modules set it)
-    :param core_kwargs: the parameters of :class:`UAVCoverageCore` (``map_size``, ``n_uavs``, ``pois``, ...)
+    :param core_kwargs: the parameters of :class:`~.config.UAVCoverageConfig` (``map_size``, ``n_uavs``, ``pois``, ...)
     """
 
     metadata = {
@@ -207,7 +207,7 @@ def parallel_env(**kwargs: Any) -> UAVCoverageEnv:
     """
     The environment as a PettingZoo ``ParallelEnv``.
 
-    :param kwargs: ``render_mode`` and the parameters of :class:`UAVCoverageCore`
+    :param kwargs: ``render_mode`` and the parameters of :class:`~.config.UAVCoverageConfig`
     """
     return UAVCoverageEnv(**kwargs)
 
@@ -216,7 +216,7 @@ def raw_env(**kwargs: Any) -> AECEnv:
     """
     The environment as an AEC env (PettingZoo's ``parallel_to_aec``), without wrappers.
 
-    :param kwargs: ``render_mode`` and the parameters of :class:`UAVCoverageCore`
+    :param kwargs: ``render_mode`` and the parameters of :class:`~.config.UAVCoverageConfig`
     """
     return parallel_to_aec(parallel_env(**kwargs))
 
@@ -228,6 +228,6 @@ def env(**kwargs: Any) -> AECEnv:
     Only the order-enforcing wrapper is added: the env itself clips out-of-range actions and raises ``ValueError`` on
     NaN, so PettingZoo's clipping wrapper would only add a warning per step (and an ``AssertionError`` on NaN).
 
-    :param kwargs: ``render_mode`` and the parameters of :class:`UAVCoverageCore`
+    :param kwargs: ``render_mode`` and the parameters of :class:`~.config.UAVCoverageConfig`
     """
     return wrappers.OrderEnforcingWrapper(raw_env(**kwargs))

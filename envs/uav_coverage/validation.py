@@ -133,13 +133,14 @@ def check_zone(name: str, value: Any, map_size: int) -> tuple[float, float, floa
     return x0, y0, x1, y1
 
 
-def warn_without_effect(settings: dict[str, tuple[bool, str]]) -> None:
+def warn_without_effect(settings: dict[str, tuple[bool, str]], stacklevel: int = 3) -> None:
     """
     Warn (once per message, Python's default) about each setting given a value that acts only with another setting
     that is off: accepted, since a sweep may set it beside a zero probability, but said.
 
     :param settings: the setting's name -> (whether it is without effect, what it needs)
+    :param stacklevel: the frame the warning names, counted from this function's caller (3: the caller's caller)
     """
     for name, (idle, needs) in settings.items():
         if idle:
-            warnings.warn(f"{name} has no effect: {needs}", UserWarning, stacklevel=3)
+            warnings.warn(f"{name} has no effect: {needs}", UserWarning, stacklevel=stacklevel)

@@ -254,7 +254,8 @@ def greedy_step_scores(
     - no look-ahead;
     - ties go to the first candidate: hovering, then the headings counter-clockwise from east.
 
-    Coverage as in the env: a PoI is covered when an active UAV is within R0 of it after the move.
+    Coverage as in the env: a PoI is covered when an active UAV is within R0 of it after the move; coverage, fairness
+    and the reward's coverage term are computed by the env's own functions (``sb3_maddpg_envs.uav_coverage.rewards``).
 
     :param core: a UAV coverage simulation (``env.core``) after ``reset``
     :param n_headings: number of headings of a full move
@@ -263,11 +264,11 @@ def greedy_step_scores(
         rho (1 + n_headings,) (0 hovering, 1 moving)
     """
     from sb3_maddpg_envs.uav_coverage.dynamics import move_within_walls, step_energy
+    from sb3_maddpg_envs.uav_coverage.rewards import coverage_score, covering_pairs, energy_weighted_gain, jain_fairness
 
     n_headings = check_int("n_headings", n_headings, 1)
     n, n_candidates = core.n_uavs, 1 + n_headings
-    positions, active = core.positions, core.active
-    pois = core.pois  # (K, 2)
+    positions, active, pois = core.positions, core.active, core.pois  # pois (K, 2)
     angles = 2.0 * np.pi * np.arange(n_headings) / n_headings
     # (C, 2) displacements and (C,) distance ratios: hovering, then the headings at l_max
     moves = np.concatenate([np.zeros((1, 2)), core.max_distance * np.stack([np.cos(angles), np.sin(angles)], axis=1)])
@@ -276,11 +277,10 @@ def greedy_step_scores(
     # Every (UAV, candidate) pair moved at once under the env's wall rule: flattened to (N C, 2).
     flat_positions = np.repeat(positions, n_candidates, axis=0)
     flat_active = np.repeat(active, n_candidates)
-    flat_rho = np.tile(rho, n)
     _, wall_cost, flown = move_within_walls(
         flat_positions,
         np.tile(moves, (n, 1)),
-        flat_rho,
+        np.tile(rho, n),
         flat_active,
         map_size=core.map_size,
         max_distance=core.max_distance,
@@ -298,19 +298,14 @@ def greedy_step_scores(
     candidates = flat_positions.reshape(n, n_candidates, 2)
 
     # Coverage after the step: the teammates (hovering where they are) and UAV i at its candidate.
-    r0_sq = core.coverage_range**2
-    now = pois[None, :, :] - positions[:, None, :]
-    covers_now = (np.einsum("nkd,nkd->nk", now, now) <= r0_sq) & active[:, None]  # (N, K)
+    covers_now = covering_pairs(positions, pois, active, core.coverage_range)  # (N, K)
     by_others = (covers_now.sum(axis=0)[None, :] - covers_now) > 0  # (N, K) covered by a teammate of i
-    after = pois[None, None, :, :] - candidates[:, :, None, :]
-    covers_after = (np.einsum("nckd,nckd->nck", after, after) <= r0_sq) & active[:, None, None]  # (N, C, K)
+    covers_after = covering_pairs(flat_positions, pois, flat_active, core.coverage_range).reshape(n, n_candidates, -1)
     covered = covers_after | by_others[:, None, :]
-    t = core.t
-    scores_after = (core.visits[None, None, :] + covered) / (t + 1)  # c'(k), (N, C, K)
-    gain = scores_after.sum(axis=2) - core.coverage_scores.sum()
-    square_sum = np.einsum("nck,nck->nc", scores_after, scores_after)
+    scores_after = coverage_score(core.visits[None, None, :] + covered, core.t + 1)  # c'(k), (N, C, K)
     total = scores_after.sum(axis=2)
-    fairness = np.where(square_sum > 0.0, total * total / (len(pois) * np.maximum(square_sum, 1e-300)), 0.0)
+    gain = total - core.coverage_scores.sum()
+    fairness = jain_fairness(total, np.einsum("nck,nck->nc", scores_after, scores_after), len(pois))
 
     penalties = wall_cost.reshape(n, n_candidates)
     if n > 1:
@@ -319,7 +314,7 @@ def greedy_step_scores(
         near = (np.einsum("ncjd,ncjd->ncj", pair, pair) <= core.comm_range**2) & active[None, None, :]
         near[np.arange(n), :, np.arange(n)] = False
         penalties = penalties + core.comm_penalty * ~near.any(axis=2)
-    return fairness * gain / (energy + eps) - penalties, candidates, rho
+    return energy_weighted_gain(fairness, gain, energy, eps) - penalties, candidates, rho
 
 
 class GreedyStepController:

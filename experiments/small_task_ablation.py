@@ -13,7 +13,8 @@ from sb3_maddpg.common.noise import DecayingGaussianNoise
 from sb3_maddpg_envs import uav_coverage_v1
 
 # The small task of tests/test_maddpg_learning.py (its UAV_V1_SMALL): an 8x8 map seen as 16x16 images, 2 UAVs starting
-# in the middle, 4 PoIs in the top-right corner, 20-step episodes, no fairness term.
+# in the middle, 4 PoIs in the top-right corner, 20-step episodes, no fairness term. A copy: the ablation keeps the
+# task it measured should the test's change.
 UAV_V1_SMALL = dict(
     map_size=8,
     obs_size=16,

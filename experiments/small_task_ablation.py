@@ -5,18 +5,26 @@ a corner, 20-step episodes): which of v1's env rules and MADDPG's stabilisers ma
     python experiments/small_task_ablation.py            # prints one line per (variant, seed): random vs trained c_T
 """
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import torch as th
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from test_maddpg_learning import UAV_V1_SMALL, episode_end_coverage  # noqa: E402
+from sb3_maddpg import MADDPG, make_multiagent_vec_env
+from sb3_maddpg.common.noise import DecayingGaussianNoise
+from sb3_maddpg_envs import uav_coverage_v1
 
-from sb3_maddpg import MADDPG, make_multiagent_vec_env  # noqa: E402
-from sb3_maddpg.common.noise import DecayingGaussianNoise  # noqa: E402
-from sb3_maddpg_envs import uav_coverage_v1  # noqa: E402
+# The small task of tests/test_maddpg_learning.py (its UAV_V1_SMALL): an 8x8 map seen as 16x16 images, 2 UAVs starting
+# in the middle, 4 PoIs in the top-right corner, 20-step episodes, no fairness term. A copy: the ablation keeps the
+# task it measured should the test's change.
+UAV_V1_SMALL = dict(
+    map_size=8,
+    obs_size=16,
+    n_uavs=2,
+    max_cycles=20,
+    pois=np.array([[6.0, 6.0], [6.5, 6.0], [6.0, 6.5], [7.0, 7.0]]),
+    start=np.array([[4.0, 4.0], [4.5, 4.0]]),
+    coverage_range=1.5,
+    fairness_coef=0.0,
+)
 
 STABILISERS = dict(
     gamma=0.9,
@@ -42,6 +50,16 @@ VARIANTS = {
     "v1 rules + stabilisers, report encoder": (dict(), STABILISERS, dict()),
     "v0 rules (as the v0 test) + stabilisers + encoder": (V0_RULES, STABILISERS, ENCODER),
 }
+
+
+def episode_end_coverage(env_fn, env_kwargs: dict, act, n_episodes: int = 8) -> float:
+    """Mean episode-end coverage c_T of the first n_episodes joint episodes of 4 copies (seed 100) under ``act``."""
+    venv = make_multiagent_vec_env(env_fn, n_envs=4, seed=100, env_kwargs=env_kwargs)
+    obs, coverage = venv.reset(), []
+    while len(coverage) < n_episodes:
+        obs, _, dones, infos = venv.step(act(obs))
+        coverage += [infos[row]["coverage"] for row in range(0, len(infos), venv.n_agents) if dones[row]]
+    return float(np.mean(coverage[:n_episodes]))
 
 
 def main() -> None:

@@ -23,6 +23,7 @@ from typing import Any, NoReturn
 
 import yaml
 
+from sb3_maddpg.algorithms import ALGORITHM_NAMES
 from sb3_maddpg.zoo.registry import TrainingStopped, UsageError, check_env_kwargs
 
 PROG = "sb3_maddpg"
@@ -30,8 +31,8 @@ ZOO_COMMANDS = ("train", "optimize", "enjoy", "record-video")
 # The commands that load a trained agent (RL Zoo's enjoy and record_video flags)
 PLAY_COMMANDS = ("enjoy", "record-video")
 DEFAULT_ALGO = "maddpg"
-# The library's algorithms, each with its RL Zoo hyperparameter file zoo_configs/<algo>.yml
-MULTIAGENT_ALGOS = ("maddpg", "matd3")
+# The library's algorithms (sb3_maddpg/algorithms.py), each with its RL Zoo hyperparameter file zoo_configs/<algo>.yml
+MULTIAGENT_ALGOS = ALGORITHM_NAMES
 # The CPU configuration of the quick start; uav_coverage_v0 (the report's) and uav_coverage_v1 are meant for a GPU.
 DEFAULT_ENV = "uav_coverage_cpu_v1"
 DEFAULTS_HELP = (

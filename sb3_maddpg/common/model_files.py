@@ -285,6 +285,7 @@ def read_maddpg_data(
     source: str | os.PathLike | io.BufferedIOBase,
     keys: tuple[str, ...] | None = (),
     custom_objects: dict[str, Any] | None = None,
+    required_keys: tuple[str, ...] = MADDPG_KEYS,
 ) -> dict[str, Any]:
     """
     Check that a saved model is an intact MADDPG zip and read some of its class parameters, without loading weights
@@ -294,6 +295,8 @@ def read_maddpg_data(
         its current position, then put back there)
     :param keys: class parameters to deserialise and return (e.g. ``("n_agents", "observation_space")``; None: all)
     :param custom_objects: parameters given instead of the saved ones
+    :param required_keys: the class parameters every model of the algorithm saves (the loading algorithm's
+        ``saved_model_keys``; default: those of MADDPG and MATD3): a file without one is not its model
     :return: those parameters
     :raises ValueError: one line saying that the file is not a MADDPG model, or is damaged, and which
     """
@@ -324,7 +327,7 @@ def read_maddpg_data(
                 raw = json.loads(archive.read("data").decode())
             except READ_ERRORS as error:
                 raise ValueError(f"{name} is damaged: its 'data' member is not valid JSON ({error})") from error
-        if not isinstance(raw, dict) or any(key not in raw for key in MADDPG_KEYS):
+        if not isinstance(raw, dict) or any(key not in raw for key in required_keys):
             saved_by = _saved_by(raw if isinstance(raw, dict) else {})
             raise ValueError(f"{name} is not a MADDPG model: it was saved by {saved_by}")
         return read_class_parameters(raw, keys, name, custom_objects)

@@ -176,6 +176,9 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {}
+    #: class parameters that every saved model of the algorithm has and no SB3 algorithm saves: ``load`` refuses a
+    #: file without one of them with a one-line error (a subclass adds its own)
+    saved_model_keys: ClassVar[tuple[str, ...]] = ("n_agents",)
     replay_buffer: MultiAgentReplayBuffer | None  # type: ignore[assignment]
 
     def __init__(
@@ -841,7 +844,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         # Every pickled class parameter is read here, without running code (model_files.restricted_loads), and handed
         # to SB3 as custom_objects, so that SB3's load unpickles none; those that ``kwargs`` replace are not read.
         given = {**{key: value for key, value in kwargs.items() if key != "policy_kwargs"}, **(custom_objects or {})}
-        custom_objects = read_maddpg_data(path, None, given)  # type: ignore[arg-type]
+        custom_objects = read_maddpg_data(path, None, given, cls.saved_model_keys)  # type: ignore[arg-type]
         cls._check_saved_algorithm(custom_objects.get("policy_class"), path)
         try:
             model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)

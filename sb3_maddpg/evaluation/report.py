@@ -160,10 +160,10 @@ def saved_algorithm(policy_class: Any) -> type:
     :param policy_class: the model's saved ``policy_class``
     :return: the algorithm class to load it with
     """
-    from sb3_maddpg import MADDPG
+    from sb3_maddpg.algorithms import algorithm_class
     from sb3_maddpg.common.off_policy_algorithm import algorithm_of_policy
 
-    return algorithm_of_policy(policy_class) or MADDPG
+    return algorithm_of_policy(policy_class) or algorithm_class("maddpg")
 
 
 def episode_limit(env: Any) -> int | None:

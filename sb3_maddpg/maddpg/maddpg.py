@@ -19,6 +19,7 @@ from sb3_maddpg.common.diagnostics import own_action_candidates, own_action_valu
 from sb3_maddpg.common.distributional import cvar, mean_anchored_quantile_loss, quantile_huber_loss
 from sb3_maddpg.common.graphed_update import GraphedUpdate, set_learning_rate
 from sb3_maddpg.common.groups import agent_groups
+from sb3_maddpg.common.model_files import MADDPG_KEYS
 from sb3_maddpg.common.noise import current_noise_std
 from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
 from sb3_maddpg.common.validation import check_maddpg_arguments
@@ -173,6 +174,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
     :param _init_setup_model: whether or not to build the networks at the creation of the instance
     """
 
+    saved_model_keys: ClassVar[tuple[str, ...]] = MADDPG_KEYS
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
         "MlpPolicy": MlpPolicy,
         "CnnPolicy": CnnPolicy,

@@ -1,11 +1,11 @@
 """
-Register MADDPG, MATD3 and the multi-agent envs into RL Zoo's own machinery, then run its ``train``, ``enjoy``,
+Register the library's algorithms and the multi-agent envs into RL Zoo's own machinery, then run its ``train``, ``enjoy``,
 ``record_video`` and Optuna code unchanged.
 
 RL Zoo reads its algorithms from ``rl_zoo3.utils.ALGOS``, its samplers from ``rl_zoo3.hyperparams_opt``, builds
 training envs in ``ExperimentManager.create_envs`` and test envs with ``create_test_env``. :func:`register_with_rl_zoo`
-adds ``"maddpg"`` and ``"matd3"`` to the first two and points ``rl_zoo3.train`` and ``rl_zoo3.enjoy`` at the
-multi-agent versions of the last two; single-agent envs and algorithms keep working as before.
+adds the library's algorithms (``sb3_maddpg.algorithms``) to the first two and points ``rl_zoo3.train`` and
+``rl_zoo3.enjoy`` at the multi-agent versions of the last two; single-agent envs and algorithms keep working as before.
 """
 
 import functools
@@ -28,15 +28,15 @@ def register_with_rl_zoo() -> None:
     import rl_zoo3.train
     import rl_zoo3.utils
 
-    from sb3_maddpg import MADDPG, MATD3
+    from sb3_maddpg.algorithms import ALGORITHM_NAMES, algorithm_class
     from sb3_maddpg.zoo import registry  # noqa: F401  (registers the env ids into Gymnasium's registry)
     from sb3_maddpg.zoo.exp_manager import MultiAgentExperimentManager
     from sb3_maddpg.zoo.hyperparams_opt import convert_maddpg_params, sample_maddpg_params
 
     # One dict object shared by rl_zoo3.utils, .train, .enjoy and .exp_manager: adding a key is seen everywhere.
-    for name, algorithm in (("maddpg", MADDPG), ("matd3", MATD3)):
-        rl_zoo3.utils.ALGOS[name] = algorithm
-        # MATD3 takes MADDPG's arguments: one search space for both
+    for name in ALGORITHM_NAMES:
+        rl_zoo3.utils.ALGOS[name] = algorithm_class(name)
+        # The library's algorithms take MADDPG's arguments: one search space for all
         rl_zoo3.hyperparams_opt.HYPERPARAMS_SAMPLER[name] = sample_maddpg_params
         rl_zoo3.hyperparams_opt.HYPERPARAMS_CONVERTER[name] = convert_maddpg_params
     # `train()` looks ExperimentManager up in its module's globals when it runs.

@@ -39,6 +39,8 @@ class QuantileCriticBase(nn.Module):
     :param action_space: one agent's action space (a Discrete(n) one is read as one-hot vectors of width n)
     :param n_agents: number of agents N
     :param n_quantiles: number of quantiles per critic
+    :param net_arch: hidden layer sizes of each critic's quantile MLP
+    :param activation_fn: activation function
     :param features_extractor_class: features extractor class
     :param features_extractor_kwargs: its keyword arguments
     :param normalize_images: divide image observations by 255
@@ -51,6 +53,8 @@ class QuantileCriticBase(nn.Module):
         output row, and its quantiles are mu + d_j - mean(d): the mean is a value of its own, and the deviations (the
         distribution's shape) can be trained without moving the layers that the mean is computed from
         (``shape_gradient=False`` in ``all_quantiles_from_features``). MADDPG's ``mean_anchored_quantiles``
+    :param agent_groups: the group of each agent: the critics of a group's agents share their weights (network c of
+        each, with a first-layer bias of its own); None: every agent its own
     """
 
     quantile_nets: BatchedMlp
@@ -61,6 +65,8 @@ class QuantileCriticBase(nn.Module):
         action_space: spaces.Box | spaces.Discrete,
         n_agents: int,
         n_quantiles: int,
+        net_arch: list[int],
+        activation_fn: type[nn.Module],
         features_extractor_class: type[BaseFeaturesExtractor],
         features_extractor_kwargs: dict[str, Any],
         normalize_images: bool,
@@ -68,6 +74,7 @@ class QuantileCriticBase(nn.Module):
         observation_mask: th.Tensor | None = None,
         action_mask: th.Tensor | None = None,
         mean_head: bool = False,
+        agent_groups: tuple[int, ...] | None = None,
     ) -> None:
         super().__init__()
         self.n_agents = n_agents
@@ -88,6 +95,18 @@ class QuantileCriticBase(nn.Module):
         self.n_outputs = n_quantiles + 1 if self.mean_head else n_quantiles
         # The first network of each agent: models 0 .. N-1
         self._first_critics = slice(0, n_agents)
+        self._build_networks(net_arch, activation_fn, self._shared_by(agent_groups))
+
+    def _build_networks(self, net_arch: list[int], activation_fn: type[nn.Module], shared_by: tuple[int, ...] | None) -> None:
+        """
+        Build the design's layers, ``quantile_nets`` among them (after the encoders, in a fixed order: the order in
+        which their weights are drawn).
+
+        :param net_arch: hidden layer sizes of the quantile MLPs
+        :param activation_fn: activation function
+        :param shared_by: the weights each network uses (``_shared_by``), None: its own
+        """
+        raise NotImplementedError
 
     def _shared_by(self, agent_groups: tuple[int, ...] | None) -> tuple[int, ...] | None:
         """With groups, network c of agent i uses the weights c * G + (group of i), G the number of groups."""
@@ -189,48 +208,13 @@ class MultiAgentQuantileCritic(QuantileCriticBase):
 
     Every critic reads all N encodings: the input of each critic is [f_1, ..., f_N, a_1, ..., a_N], so its own
     agent's action is A of N (F + A) inputs and its first layer grows with N. The N critic MLPs run as one batched
-    network. Parameters as in ``QuantileCriticBase``, and:
-
-    :param net_arch: hidden layer sizes of each critic
-    :param activation_fn: activation function
-    :param agent_groups: the group of each agent: the critics of a group's agents share their networks (network c
-        of each, with a first-layer bias of its own); None: every agent its own
+    network. Parameters as in ``QuantileCriticBase``.
     """
 
-    def __init__(
-        self,
-        observation_space: spaces.Box,
-        action_space: spaces.Box | spaces.Discrete,
-        n_agents: int,
-        n_quantiles: int,
-        net_arch: list[int],
-        activation_fn: type[nn.Module],
-        features_extractor_class: type[BaseFeaturesExtractor],
-        features_extractor_kwargs: dict[str, Any],
-        normalize_images: bool,
-        n_critics: int = 1,
-        observation_mask: th.Tensor | None = None,
-        action_mask: th.Tensor | None = None,
-        mean_head: bool = False,
-        agent_groups: tuple[int, ...] | None = None,
-    ) -> None:
-        super().__init__(
-            observation_space,
-            action_space,
-            n_agents,
-            n_quantiles,
-            features_extractor_class,
-            features_extractor_kwargs,
-            normalize_images,
-            n_critics=n_critics,
-            observation_mask=observation_mask,
-            action_mask=action_mask,
-            mean_head=mean_head,
-        )
-        input_dim = n_agents * (self.features.features_dim + self.action_dim)
-        self.quantile_nets = BatchedMlp(
-            n_critics * n_agents, input_dim, self.n_outputs, net_arch, activation_fn, shared_by=self._shared_by(agent_groups)
-        )
+    def _build_networks(self, net_arch: list[int], activation_fn: type[nn.Module], shared_by: tuple[int, ...] | None) -> None:
+        input_dim = self.n_agents * (self.features.features_dim + self.action_dim)
+        n_models = self.n_critics * self.n_agents
+        self.quantile_nets = BatchedMlp(n_models, input_dim, self.n_outputs, net_arch, activation_fn, shared_by=shared_by)
 
     def quantiles_from_features(self, features: th.Tensor, actions: th.Tensor) -> th.Tensor:
         batch_size, n_agents = features.shape[:2]
@@ -295,53 +279,21 @@ class AttentionQuantileCritic(QuantileCriticBase):
     output unchanged), and each critic keeps its own agent's reward (per-agent and competing rewards alike). The
     cost of an update grows as N for the networks and N^2 only for the attention's dot products. Where MAAC uses
     a soft actor-critic and shares one critic network between agents, this critic keeps MADDPG's deterministic
-    actors and one quantile network per agent (or group) and network. Parameters as in ``QuantileCriticBase``, and:
+    actors and one quantile network per agent (or group) and network. Parameters as in ``QuantileCriticBase`` (its
+    quantile MLPs read [h, ctx]; a group's agents share their own paths and quantile MLPs), and:
 
-    :param net_arch: hidden layer sizes of each critic's quantile MLP on [h, ctx]
-    :param activation_fn: activation function
-    :param agent_groups: the group of each agent: the critics of a group's agents share their own paths and quantile
-        MLPs (each with a first-layer bias of its own); None: every agent its own
     :param embed_dim: the size E of the own path, the teammates' embeddings and the attention's output
     :param n_heads: attention heads (a divisor of ``embed_dim``)
     """
 
-    def __init__(
-        self,
-        observation_space: spaces.Box,
-        action_space: spaces.Box | spaces.Discrete,
-        n_agents: int,
-        n_quantiles: int,
-        net_arch: list[int],
-        activation_fn: type[nn.Module],
-        features_extractor_class: type[BaseFeaturesExtractor],
-        features_extractor_kwargs: dict[str, Any],
-        normalize_images: bool,
-        n_critics: int = 1,
-        observation_mask: th.Tensor | None = None,
-        action_mask: th.Tensor | None = None,
-        mean_head: bool = False,
-        agent_groups: tuple[int, ...] | None = None,
-        embed_dim: int = 64,
-        n_heads: int = 4,
-    ) -> None:
+    def __init__(self, *args: Any, embed_dim: int = 64, n_heads: int = 4, **kwargs: Any) -> None:
         check_attention_arguments(embed_dim, n_heads)
-        super().__init__(
-            observation_space,
-            action_space,
-            n_agents,
-            n_quantiles,
-            features_extractor_class,
-            features_extractor_kwargs,
-            normalize_images,
-            n_critics=n_critics,
-            observation_mask=observation_mask,
-            action_mask=action_mask,
-            mean_head=mean_head,
-        )
-        self.embed_dim, self.n_heads = int(embed_dim), int(n_heads)
-        features_dim = self.features.features_dim
-        shared_by = self._shared_by(agent_groups)
-        n_models = n_critics * n_agents
+        self.embed_dim, self.n_heads = int(embed_dim), int(n_heads)  # read by _build_networks
+        super().__init__(*args, **kwargs)
+
+    def _build_networks(self, net_arch: list[int], activation_fn: type[nn.Module], shared_by: tuple[int, ...] | None) -> None:
+        features_dim, n_critics = self.features.features_dim, self.n_critics
+        n_models = n_critics * self.n_agents
         self.activation = activation_fn()
         self.own_path = BatchedLinear(n_models, features_dim + self.action_dim, self.embed_dim, shared_by, own_bias=True)
         # One attention per network c, shared by the agents' critics

@@ -1,5 +1,7 @@
 """Every argument of MADDPG, its policies and make_multiagent_vec_env is checked where it enters."""
 
+import re
+
 import pytest
 import torch as th
 from maddpg_test_envs import TargetReachEnv
@@ -95,7 +97,10 @@ BAD_VEC_ENV_ARGUMENTS = [
 
 
 @pytest.mark.parametrize(
-    ("kwargs", "error", "message"), BAD_VEC_ENV_ARGUMENTS, ids=[str(k) for k, _, _ in BAD_VEC_ENV_ARGUMENTS]
+    ("kwargs", "error", "message"),
+    BAD_VEC_ENV_ARGUMENTS,
+    # without the object's address, so that every pytest-xdist worker collects the same test names
+    ids=[re.sub(r" at 0x[0-9a-f]+", "", str(k)) for k, _, _ in BAD_VEC_ENV_ARGUMENTS],
 )
 def test_bad_vec_env_argument_is_refused_naming_it(kwargs, error, message) -> None:
     arguments = {"env_fn": TargetReachEnv, **kwargs}

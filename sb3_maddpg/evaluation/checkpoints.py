@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize
-from sb3_maddpg.evaluation.report import _load_controller, find_run_config
+from sb3_maddpg.evaluation.report import _load_controller, evaluation_env
 
 # RL Zoo's CheckpointCallback names: <prefix>_<timesteps>_steps.zip
 _CHECKPOINT_STEPS = re.compile(r"_(\d+)_steps\.zip$")
@@ -67,25 +67,16 @@ def select_checkpoint(
     :return: ``scores`` (path, validation mean, per model), ``chosen`` and ``final`` (paths), ``metric``, and
         ``summary`` / ``table`` of the test episodes with the rows ``final model`` and ``best of K checkpoints``
     """
-    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
+    from sb3_maddpg.zoo.registry import make_multiagent_env
 
     if not model_paths:
         raise ValueError("select_checkpoint needs at least one model")
     for name, count in (("validation_episodes", validation_episodes), ("test_episodes", test_episodes)):
         if isinstance(count, bool) or not isinstance(count, int) or count < 1:
             raise ValueError(f"{name} must be an integer >= 1, got {count!r}")
-    run_env_id, run_env_kwargs = find_run_config(model_paths[-1])
-    env_id = env_id or run_env_id
-    if env_id not in MULTIAGENT_ENVS:
-        raise ValueError(f"unknown env {env_id!r}: give env_id (registered: {', '.join(sorted(MULTIAGENT_ENVS))})")
-    probe_kwargs = {**run_env_kwargs, **(env_kwargs or {})}
-    probe_kwargs.pop("render_mode", None)
-    probe = make_multiagent_env(env_id, **probe_kwargs)
-    is_uav_env = getattr(probe, "core", None) is not None
-    probe.close()
-    # As evaluate: the UAV envs start every episode at new places unless asked otherwise
-    kwargs = {**run_env_kwargs, **({"start": "random"} if is_uav_env else {}), **(env_kwargs or {})}
-    kwargs.pop("render_mode", None)
+    # As evaluate: the run's env, and on the UAV envs a new start at random places every episode
+    target = evaluation_env(model_paths[-1], env_id, env_kwargs)
+    env_id, kwargs = target.env_id, target.kwargs
 
     def run(path: str | os.PathLike, n_episodes: int, seed: int) -> list[dict[str, float]]:
         controller = _load_controller(path, env_id, kwargs, device)

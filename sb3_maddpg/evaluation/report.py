@@ -3,6 +3,7 @@
 import os
 import re
 from collections.abc import Sequence
+from dataclasses import dataclass
 from numbers import Integral
 from pathlib import Path
 from typing import Any
@@ -230,6 +231,59 @@ def check_model_fits_env(model_path: str | os.PathLike, env_id: str, env_kwargs:
     return data
 
 
+@dataclass(frozen=True)
+class EvaluationEnv:
+    """
+    The env an evaluation plays, as ``evaluation_env`` works it out.
+
+    :param env_id: the registered env
+    :param kwargs: its arguments (the run's, those given over them, a random start on the UAV envs)
+    :param is_uav_env: a UAV coverage env (it has a simulation ``core``: the UAV metrics, baselines and figures)
+    :param render_mode: ``"rgb_array"`` where the env renders to arrays, else None
+    :param max_cycles: the most steps an episode has, or None if the env does not say
+    """
+
+    env_id: str
+    kwargs: dict[str, Any]
+    is_uav_env: bool
+    render_mode: str | None
+    max_cycles: int | None
+
+
+def evaluation_env(
+    model_path: str | os.PathLike | None, env_id: str | None = None, env_kwargs: dict[str, Any] | None = None
+) -> EvaluationEnv:
+    """
+    The env that ``evaluate`` and ``select-checkpoint`` play: the model's run's env and arguments (``find_run_config``),
+    ``env_id`` and ``env_kwargs`` over them, and on the UAV envs a new start at random places every episode unless
+    ``env_kwargs`` says otherwise. One env is made to find out what it is.
+
+    :param model_path: the model whose run gives the env (None: ``env_id``, else ``uav_coverage_v0``)
+    :param env_id: the env; by default the run's
+    :param env_kwargs: env arguments over the run's
+    :raises ValueError: for an env id that is not a registered multi-agent env
+    """
+    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
+
+    run_env_id, run_env_kwargs = (None, {}) if model_path is None else find_run_config(model_path)
+    env_id = env_id or run_env_id or DEFAULT_ENV_ID
+    if env_id not in MULTIAGENT_ENVS:
+        raise ValueError(f"unknown env {env_id!r}; registered multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
+    kwargs = {**run_env_kwargs, **(env_kwargs or {})}
+    kwargs.pop("render_mode", None)
+    probe = make_multiagent_env(env_id, **kwargs)
+    try:
+        is_uav_env = getattr(probe, "core", None) is not None
+        render_mode = "rgb_array" if "rgb_array" in probe.metadata.get("render_modes", []) else None
+        max_cycles = episode_limit(probe)
+    finally:
+        probe.close()
+    if is_uav_env:
+        kwargs = {**run_env_kwargs, "start": "random", **(env_kwargs or {})}
+        kwargs.pop("render_mode", None)
+    return EvaluationEnv(env_id, kwargs, is_uav_env, render_mode, max_cycles)
+
+
 def _load_controller(model_path: str | os.PathLike, env_id: str, env_kwargs: dict[str, Any], device: str) -> ModelController:
     """A saved model as a controller (``evaluate``'s opponent), named after its file."""
     algorithm = saved_algorithm(check_model_fits_env(model_path, env_id, env_kwargs).get("policy_class"))
@@ -285,26 +339,12 @@ def evaluate_and_report(
     :return: ``summary``, ``results``, ``table``, ``files`` (name -> path) and ``env_kwargs``
     :raises ModelEnvMismatchError: if the model does not fit the env (``OpponentEnvMismatchError``: the opponent)
     """
-    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
+    from sb3_maddpg.zoo.registry import make_multiagent_env
 
-    run_env_id, run_env_kwargs = (None, {}) if model_path is None else find_run_config(model_path)
-    env_id = env_id or run_env_id or DEFAULT_ENV_ID
-    if env_id not in MULTIAGENT_ENVS:
-        raise ValueError(f"unknown env {env_id!r}; registered multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
-    kwargs = {**run_env_kwargs, **(env_kwargs or {})}
-    kwargs.pop("render_mode", None)
-
+    target = evaluation_env(model_path, env_id, env_kwargs)
     check_writable_folder(out_dir, "out_dir")
-    probe = make_multiagent_env(env_id, **kwargs)
-    core = getattr(probe, "core", None)
-    render_mode = "rgb_array" if "rgb_array" in probe.metadata.get("render_modes", []) else None
-    max_cycles = episode_limit(probe)
-    probe.close()
+    env_id, kwargs, render_mode, max_cycles = target.env_id, target.kwargs, target.render_mode, target.max_cycles
     check_state_steps(state_steps, max_cycles)
-    if core is not None:
-        # The UAV envs: new start positions every episode unless asked otherwise
-        kwargs = {**run_env_kwargs, "start": "random", **(env_kwargs or {})}
-        kwargs.pop("render_mode", None)
 
     controllers: list[Controller] = []
     if model_path is not None:
@@ -325,7 +365,7 @@ def evaluate_and_report(
             TeamController(team, own, rival),
             TeamController(team, RandomController(), rival, name=f"random ({team}) vs {rival.name}"),
         ]
-    controllers.extend(make_baselines(baselines, uav_env=core is not None))
+    controllers.extend(make_baselines(baselines, uav_env=target.is_uav_env))
     if not controllers:
         raise ValueError("nothing to evaluate: give a model or at least one baseline")
     names = [controller.name for controller in controllers]
@@ -333,7 +373,7 @@ def evaluate_and_report(
     record_name = names[0] if model_path is not None or "greedy_static" not in names else "greedy_static"
 
     if state_steps is None:
-        state_steps = sorted({0, max_cycles // 2, max_cycles}) if core is not None else []
+        state_steps = sorted({0, max_cycles // 2, max_cycles}) if target.is_uav_env else []
     if frame_every is None:
         frame_every = max(1, (max_cycles or 100) // 100)
 
@@ -367,7 +407,7 @@ def evaluate_and_report(
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     files["returns_vs_episode.png"] = plot_returns_vs_episode(series, figures / "returns_vs_episode.png")
-    if core is not None:
+    if target.is_uav_env:
         files["fairness_vs_coverage.png"] = plot_fairness_vs_coverage(series, figures / "fairness_vs_coverage.png")
         files["fairness_vs_energy_efficiency.png"] = plot_fairness_vs_efficiency(
             series, figures / "fairness_vs_energy_efficiency.png"

@@ -54,7 +54,14 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
     :param render_mode: None (the task does not render)
     """
 
-    metadata = {"render_modes": [], "name": "risky_reach_v0", "is_parallelizable": True}
+    metadata = {
+        "render_modes": [],
+        "name": "risky_reach_v0",
+        "is_parallelizable": True,
+        # logged at an episode's end by a training run (each agent's count; the team's is their sum)
+        "episode_metrics": ("zone_steps", "zone_losses"),
+        "per_agent_episode_metrics": ("zone_steps", "zone_losses"),
+    }
 
     def __init__(
         self,

@@ -6,7 +6,10 @@ import numpy as np
 import pytest
 from stable_baselines3.common.logger import Logger
 
-from sb3_maddpg.common.callbacks import EpisodeMetricsCallback, joint_episode_metrics
+from sb3_maddpg.common.callbacks import EpisodeMetricsCallback, declared_episode_metrics, joint_episode_metrics
+
+UAV_KEYS = ("coverage", "fairness", "energy", "energy_efficiency", "wall_hits", "disconnections")
+UAV_PER_AGENT_KEYS = ("wall_hits", "disconnections")
 
 
 def agent_info(coverage: float, wall_hits: int = 0, disconnections: int = 0) -> dict:
@@ -20,20 +23,27 @@ def agent_info(coverage: float, wall_hits: int = 0, disconnections: int = 0) -> 
     }
 
 
-class FakeModel:
-    """What the callback touches: the logger, the timestep counter and n_agents."""
+class FakeEnv:
+    """An env that declares the UAV task's metrics, as the UAV envs' metadata does."""
 
-    def __init__(self, n_agents: int) -> None:
+    metadata = {"episode_metrics": UAV_KEYS, "per_agent_episode_metrics": UAV_PER_AGENT_KEYS}
+
+
+class FakeModel:
+    """What the callback touches: the logger, the timestep counter, n_agents and the env."""
+
+    def __init__(self, n_agents: int, env: object = None) -> None:
         self.n_agents = n_agents
         self.num_timesteps = 0
         self.logger = Logger(folder=None, output_formats=[])
+        self.env = env
 
-    def get_env(self) -> None:
-        return None
+    def get_env(self) -> object:
+        return self.env
 
 
-def make_callback(n_agents: int) -> tuple[EpisodeMetricsCallback, FakeModel]:
-    model = FakeModel(n_agents)
+def make_callback(n_agents: int, env: object = FakeEnv()) -> tuple[EpisodeMetricsCallback, FakeModel]:
+    model = FakeModel(n_agents, env)
     callback = EpisodeMetricsCallback()
     callback.init_callback(model)  # type: ignore[arg-type]
     return callback, model
@@ -46,11 +56,11 @@ def step(callback: EpisodeMetricsCallback, dones: list[bool], infos: list[dict])
 
 def test_joint_episode_metrics_sums_per_agent_counts() -> None:
     infos = [agent_info(0.3, 1, 0), agent_info(0.3, 2, 5), agent_info(0.9, 7, 7), agent_info(0.9, 0, 1)]
-    metrics = joint_episode_metrics(infos, first_row=0, n_agents=2)
+    metrics = joint_episode_metrics(infos, first_row=0, n_agents=2, keys=UAV_KEYS, per_agent_keys=UAV_PER_AGENT_KEYS)
     assert metrics["coverage"] == pytest.approx(0.3)
     assert metrics["wall_hits"] == 3
     assert metrics["disconnections"] == 5
-    assert joint_episode_metrics([{}, {}], 0, 2) == {}
+    assert joint_episode_metrics([{}, {}], 0, 2, UAV_KEYS, UAV_PER_AGENT_KEYS) == {}
 
 
 def test_logs_once_per_joint_episode_and_averages_between_dumps() -> None:
@@ -74,6 +84,52 @@ def test_envs_without_metrics_log_nothing() -> None:
     step(callback, [True, True], [{"terminal_observation": np.zeros(3)}, {}])
     assert callback.n_episodes == 0
     assert not any(key.startswith("rollout/") for key in model.logger.name_to_value)
+
+
+def test_metrics_an_env_does_not_declare_are_not_logged() -> None:
+    # the same infos as above, from an env whose metadata declares no metrics (the MPE tasks)
+    callback, model = make_callback(n_agents=3, env=None)
+    step(callback, [True] * 3, [agent_info(0.2, 1)] * 3)
+    assert callback.n_episodes == 0
+    assert "rollout/coverage" not in model.logger.name_to_value
+
+
+@pytest.mark.parametrize(
+    ("env_id", "keys", "per_agent_keys"),
+    [
+        ("uav_coverage_cpu_v1", UAV_KEYS, UAV_PER_AGENT_KEYS),
+        ("uav_coverage_v0", UAV_KEYS, UAV_PER_AGENT_KEYS),
+        ("risky_reach_v0", ("zone_steps", "zone_losses"), ("zone_steps", "zone_losses")),
+        ("simple_spread_v3", (), ()),
+    ],
+)
+def test_the_env_declares_its_episode_metrics_through_the_vec_env(env_id, keys, per_agent_keys) -> None:
+    import functools
+
+    from sb3_maddpg import make_multiagent_vec_env
+    from sb3_maddpg.zoo.registry import make_multiagent_env
+
+    venv = make_multiagent_vec_env(functools.partial(make_multiagent_env, env_id), n_envs=1, seed=0)
+    assert declared_episode_metrics(venv) == (keys, per_agent_keys)
+    venv.close()
+
+
+class BadDeclaration:
+    def __init__(self, **metadata) -> None:
+        self.metadata = metadata
+
+
+@pytest.mark.parametrize(
+    ("metadata", "message"),
+    [
+        (dict(episode_metrics="coverage"), "must be a list of info keys"),
+        (dict(episode_metrics=["coverage", 3]), "must be a list of info keys"),
+        (dict(episode_metrics=["coverage"], per_agent_episode_metrics=["wall_hits"]), "not among its"),
+    ],
+)
+def test_a_malformed_declaration_is_refused_naming_it(metadata, message) -> None:
+    with pytest.raises(TypeError, match=message):
+        declared_episode_metrics(BadDeclaration(**metadata))
 
 
 def test_short_run_writes_coverage_and_fairness_to_tensorboard(tmp_path) -> None:

@@ -53,6 +53,10 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
         "name": "uav_coverage_v0",
         "is_parallelizable": True,
         "render_fps": 10,
+        # The info keys reported at an episode's end that a training run logs (sb3_maddpg's EpisodeMetricsCallback
+        # and the monitor file); wall hits and disconnections count one UAV's events, the team's are their sum
+        "episode_metrics": ("coverage", "fairness", "energy", "energy_efficiency", "wall_hits", "disconnections"),
+        "per_agent_episode_metrics": ("wall_hits", "disconnections"),
     }
 
     def __init__(self, render_mode: str | None = None, name: str = "uav_coverage_v0", **core_kwargs: Any) -> None:

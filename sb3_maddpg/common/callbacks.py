@@ -5,19 +5,50 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 
-# The per-step metrics of ``uav_coverage_v0`` (SPEC §1.5), as they appear in every agent's info.
-EPISODE_METRIC_KEYS: tuple[str, ...] = ("coverage", "fairness", "energy", "energy_efficiency", "wall_hits", "disconnections")
-# Metrics that count one agent's events: the team value is the sum over the agents of a copy.
-# The others are global (the same in every agent's info), so the agent-0 row gives them.
-PER_AGENT_METRIC_KEYS: tuple[str, ...] = ("wall_hits", "disconnections")
+# The metadata keys by which an env declares its episode-end metrics (``declared_episode_metrics``)
+EPISODE_METRICS_KEY = "episode_metrics"
+PER_AGENT_EPISODE_METRICS_KEY = "per_agent_episode_metrics"
+
+
+def declared_episode_metrics(env: object) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """
+    The episode-end metrics an environment declares in its ``metadata``: under ``"episode_metrics"`` the info keys that
+    every agent reports (read when an episode ends), under ``"per_agent_episode_metrics"`` those among them that count
+    one agent's events (the team value is their sum over the agents; the others are the same in every agent's info).
+    The library knows no task's metrics by name: an env that declares none has its returns logged only.
+
+    :param env: a VecEnv (the metadata of the env behind its first row, as ``get_attr`` gives it), an env with a
+        ``metadata`` dict, or None
+    :return: ``(keys, per_agent_keys)``, empty where the env declares nothing
+    :raises TypeError: if the declaration is not a list of strings, or names a per-agent key that is not among the keys
+    """
+    if env is None:
+        return (), ()
+    get_attr = getattr(env, "get_attr", None)
+    metadata = get_attr("metadata", [0])[0] if callable(get_attr) else getattr(env, "metadata", None)
+    if not isinstance(metadata, dict):
+        return (), ()
+    declared = []
+    for name in (EPISODE_METRICS_KEY, PER_AGENT_EPISODE_METRICS_KEY):
+        keys = metadata.get(name, ())
+        if isinstance(keys, str) or not isinstance(keys, Sequence) or not all(isinstance(key, str) for key in keys):
+            raise TypeError(f"the env's metadata[{name!r}] must be a list of info keys (strings), got {keys!r}")
+        declared.append(tuple(keys))
+    keys, per_agent_keys = declared
+    if not set(per_agent_keys) <= set(keys):
+        raise TypeError(
+            f"the env's metadata[{PER_AGENT_EPISODE_METRICS_KEY!r}] names keys that are not among its "
+            f"{EPISODE_METRICS_KEY!r}: {sorted(set(per_agent_keys) - set(keys))}"
+        )
+    return keys, per_agent_keys
 
 
 def joint_episode_metrics(
     infos: Sequence[dict],
     first_row: int,
     n_agents: int,
-    keys: Sequence[str] = EPISODE_METRIC_KEYS,
-    per_agent_keys: Sequence[str] = PER_AGENT_METRIC_KEYS,
+    keys: Sequence[str],
+    per_agent_keys: Sequence[str] = (),
 ) -> dict[str, float]:
     """
     The metrics of one environment copy at a joint step, read from its agents' infos.
@@ -81,20 +112,21 @@ def team_returns(agent_returns: dict[str, float]) -> dict[str, float]:
 
 class EpisodeMetricsCallback(BaseCallback):
     """
-    Logs the environment's episode-end metrics (coverage, fairness, energy, energy efficiency, wall hits,
-    disconnections) through SB3's logger, next to ``rollout/ep_rew_mean``.
+    Logs the environment's episode-end metrics (those it declares, ``declared_episode_metrics``: on the UAV tasks
+    coverage, fairness, energy, energy efficiency, wall hits, disconnections) through SB3's logger, next to
+    ``rollout/ep_rew_mean``.
 
     It reads the infos once per *joint* episode (the row of agent 0 of each copy, agent-major rows as made by
     ``make_multiagent_vec_env``), not once per agent row, and logs each agent's return of the episode as
     ``<prefix>/ep_rew_<agent>`` beside SB3's team return ``rollout/ep_rew_mean``; where the agents' names make
     several teams (``team_returns``: ``adversary_0``, ``adversary_1`` against ``agent_0``), each team's return as
     ``<prefix>/ep_rew_team_<team>``. Each logged value is the mean over
-    the episodes that ended since the last dump of the logger (``logger.record_mean``), SB3 style. Envs whose infos
-    lack the metric keys (e.g. ``simple_spread_v3``) log only the agents' returns.
+    the episodes that ended since the last dump of the logger (``logger.record_mean``), SB3 style. Envs that declare
+    no metrics (e.g. ``simple_spread_v3``) log only the agents' returns.
 
-    :param info_keys: metric names to read from the infos
+    :param info_keys: metric names to read from the infos; by default those the model's env declares
     :param per_agent_keys: the names among ``info_keys`` that count one agent's events; their team value
-        (the sum over the copy's agents) is logged
+        (the sum over the copy's agents) is logged; by default those the model's env declares
     :param prefix: logger section, e.g. ``"rollout"`` gives ``rollout/coverage``
     :param n_agents: agents per environment copy; by default read from the model or the VecEnv (``n_agents``),
         or 1 for single-agent envs
@@ -103,22 +135,27 @@ class EpisodeMetricsCallback(BaseCallback):
 
     def __init__(
         self,
-        info_keys: Sequence[str] = EPISODE_METRIC_KEYS,
-        per_agent_keys: Sequence[str] = PER_AGENT_METRIC_KEYS,
+        info_keys: Sequence[str] | None = None,
+        per_agent_keys: Sequence[str] | None = None,
         prefix: str = "rollout",
         n_agents: int | None = None,
         verbose: int = 0,
     ) -> None:
         super().__init__(verbose)
-        self.info_keys = tuple(info_keys)
-        self.per_agent_keys = tuple(per_agent_keys)
+        self.info_keys = None if info_keys is None else tuple(info_keys)
+        self.per_agent_keys = None if per_agent_keys is None else tuple(per_agent_keys)
         self.prefix = prefix
         self.n_agents = n_agents
         self.n_episodes = 0
 
     def _init_callback(self) -> None:
+        env = self.model.get_env()
         if self.n_agents is None:
-            self.n_agents = _find_n_agents(self.model, self.model.get_env())
+            self.n_agents = _find_n_agents(self.model, env)
+        if self.info_keys is None or self.per_agent_keys is None:
+            keys, per_agent_keys = declared_episode_metrics(env)
+            self.info_keys = keys if self.info_keys is None else self.info_keys
+            self.per_agent_keys = per_agent_keys if self.per_agent_keys is None else self.per_agent_keys
 
     def _on_step(self) -> bool:
         dones = self.locals.get("dones")
@@ -137,7 +174,7 @@ class EpisodeMetricsCallback(BaseCallback):
             if len(teams) > 1:
                 for team, value in teams.items():
                     self.logger.record_mean(f"{self.prefix}/ep_rew_team_{team}", value)
-            metrics = joint_episode_metrics(infos, int(first_row), n_agents, self.info_keys, self.per_agent_keys)
+            metrics = joint_episode_metrics(infos, int(first_row), n_agents, self.info_keys or (), self.per_agent_keys or ())
             if not metrics:
                 continue
             self.n_episodes += 1
@@ -149,7 +186,7 @@ class EpisodeMetricsCallback(BaseCallback):
         # Off-policy algorithms dump the logger every `log_interval` episodes only: flush what the last
         # episodes recorded so that short runs still leave these scalars in TensorBoard.
         pending = getattr(self.logger, "name_to_value", {})
-        if any(key.startswith(f"{self.prefix}/") and key.split("/", 1)[1] in self.info_keys for key in pending):
+        if any(key.startswith(f"{self.prefix}/") and key.split("/", 1)[1] in (self.info_keys or ()) for key in pending):
             self.logger.dump(self.num_timesteps)
 
 

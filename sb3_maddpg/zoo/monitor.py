@@ -9,7 +9,7 @@ from stable_baselines3.common.monitor import ResultsWriter
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvStepReturn
 
-from sb3_maddpg.common.callbacks import EPISODE_METRIC_KEYS, joint_episode_metrics
+from sb3_maddpg.common.callbacks import declared_episode_metrics, joint_episode_metrics
 
 
 class JointEpisodeMonitor(VecEnvWrapper):
@@ -27,18 +27,20 @@ class JointEpisodeMonitor(VecEnvWrapper):
         (row = copy * n_agents + agent)
     :param filename: where to write (``monitor.csv`` is appended to a folder-like name as SB3 does); None to write
         nothing and only keep the statistics in memory
-    :param info_keywords: metric names read from the infos at the end of each joint episode
+    :param info_keywords: metric names read from the infos at the end of each joint episode; by default those the
+        env declares (``declared_episode_metrics``), whose per-agent counts are summed over the team
     """
 
     def __init__(
         self,
         venv: VecEnv,
         filename: str | None = None,
-        info_keywords: Sequence[str] = EPISODE_METRIC_KEYS,
+        info_keywords: Sequence[str] | None = None,
     ) -> None:
         super().__init__(venv)
         self.n_agents: int = venv.n_agents  # type: ignore[attr-defined]
-        self.info_keywords = tuple(info_keywords)
+        declared, self.per_agent_keywords = declared_episode_metrics(venv)
+        self.info_keywords = declared if info_keywords is None else tuple(info_keywords)
         self.agent_names = [str(agent) for agent in getattr(venv, "possible_agents", [])]
         self.t_start = time.time()
         self.results_writer: ResultsWriter | None = None
@@ -57,7 +59,7 @@ class JointEpisodeMonitor(VecEnvWrapper):
         obs, rewards, dones, infos = self.venv.step_wait()
         n_agents = self.n_agents
         for first_row in np.flatnonzero(np.asarray(dones)[::n_agents]) * n_agents:
-            metrics = joint_episode_metrics(infos, int(first_row), n_agents, self.info_keywords)
+            metrics = joint_episode_metrics(infos, int(first_row), n_agents, self.info_keywords, self.per_agent_keywords)
             episode = infos[first_row]["episode"]
             row: dict[str, Any] = {
                 "r": round(float(episode["r"]), 6),

@@ -282,7 +282,8 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     if _has_flag(argv, "-h", "--help"):
         # RL Zoo's help follows, with RL Zoo's own defaults for --algo and --env
         safe = "" if command in PLAY_COMMANDS else "; --safe-config: the -conf entry must hold values only, no code"
-        print(f"{PROG} {command}: {DEFAULTS_HELP}{safe}; RL Zoo's options follow.\n")
+        pictures = f"; {', '.join(PICTURE_FLAGS)}: {PICTURE_FLAGS_HELP}" if command == "train" else ""
+        print(f"{PROG} {command}: {DEFAULTS_HELP}{safe}{pictures}; RL Zoo's options follow.\n")
         return argv
     args, _ = _zoo_preparser(command).parse_known_args(argv)
     _import_gym_packages(args.gym_packages)
@@ -358,6 +359,35 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     return argv
 
 
+# The library's own train flags, which RL Zoo's parser does not know: what each evaluation draws into TensorBoard
+PICTURE_FLAGS = ("--eval-video", "--no-eval-images")
+PICTURE_FLAGS_HELP = (
+    "with -tb, each evaluation also writes its coverage, fairness, ... and, on the UAV envs, the coverage heat map "
+    "(--no-eval-images: none) and, with --eval-video, a video of one episode; every run writes its hyperparameters "
+    "(TensorBoard's HPARAMS tab)"
+)
+
+
+def pop_picture_flags(command: str, argv: list[str]) -> tuple[list[str], dict[str, bool]]:
+    """
+    Take ``--eval-video`` and ``--no-eval-images`` out of ``train``'s arguments.
+
+    :param command: the command
+    :param argv: its arguments
+    :return: the arguments for RL Zoo, and ``run_train``'s ``eval_images`` and ``eval_video``
+    """
+    given = [arg for arg in argv if arg in PICTURE_FLAGS]
+    if not given:
+        return argv, {}
+    if command != "train":
+        raise UsageError(f"{given[0]} is a train flag (pictures of the evaluations during training)")
+    video, images = "--eval-video" in given, "--no-eval-images" not in given
+    rest = [arg for arg in argv if arg not in PICTURE_FLAGS]
+    if video and not _has_flag(rest, "-tb", "--tensorboard-log", "--track"):
+        raise UsageError("--eval-video writes the video into TensorBoard: give -tb/--tensorboard-log FOLDER too")
+    return rest, {"eval_images": images, "eval_video": video}
+
+
 # ---------------------------------------------------------------------------------------------------------------------
 # Commands
 # ---------------------------------------------------------------------------------------------------------------------
@@ -372,13 +402,14 @@ def run_zoo_command(command: str, argv: list[str]) -> None:
     from sb3_maddpg.zoo import integration
 
     integration.register_with_rl_zoo()
+    argv, pictures = pop_picture_flags(command, argv)
     zoo_argv = prepare_zoo_argv(command, argv)
     if command == "enjoy":
         integration.run_enjoy(zoo_argv)
     elif command == "record-video":
         integration.run_record_video(zoo_argv)
     else:
-        integration.run_train(zoo_argv)
+        integration.run_train(zoo_argv, **pictures)
 
 
 def run_evaluate(args: argparse.Namespace) -> None:

@@ -359,6 +359,7 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     return argv
 
 
+QUIET_HELP = "no progress bar (there is none either when stderr is not a terminal)"
 # The library's own train flags, which RL Zoo's parser does not know: what each evaluation draws into TensorBoard
 PICTURE_FLAGS = ("--eval-video", "--no-eval-images")
 PICTURE_FLAGS_HELP = (
@@ -419,6 +420,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
     :param args: parsed arguments
     """
     from sb3_maddpg.evaluation.baselines import make_baselines
+    from sb3_maddpg.evaluation.progress import wants_progress_bar
     from sb3_maddpg.evaluation.report import (
         DEFAULT_ENV_ID,
         ModelEnvMismatchError,
@@ -495,6 +497,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
             baselines=args.baselines,
             team=args.team,
             opponent=args.opponent,
+            progress=wants_progress_bar(args.quiet),
         )
     except OpponentEnvMismatchError as error:
         raise UsageError(f"--opponent: {error}") from error
@@ -532,6 +535,7 @@ def run_select_checkpoint(args: argparse.Namespace) -> None:
     :param args: parsed arguments
     """
     from sb3_maddpg.evaluation.checkpoints import run_checkpoints, select_checkpoint, write_selection
+    from sb3_maddpg.evaluation.progress import wants_progress_bar
 
     _check_writable(args.out, "--out")
     try:
@@ -545,6 +549,7 @@ def run_select_checkpoint(args: argparse.Namespace) -> None:
             test_seed=args.seed,
             env_kwargs=parse_key_values(args.env_kwargs, "--env-kwargs"),
             device=args.device,
+            progress=wants_progress_bar(args.quiet),
         )
     except ValueError as error:
         raise UsageError(str(error)) from error
@@ -743,6 +748,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     evaluate.add_argument("--no-gif", action="store_true", help="do not write the episode GIF")
     evaluate.add_argument("--verbose", type=int, default=1, help="0: quiet, 1: table, 2: every episode")
+    evaluate.add_argument("--quiet", action="store_true", help=QUIET_HELP)
 
     plot = commands.add_parser(
         "plot",
@@ -774,6 +780,7 @@ def build_parser() -> argparse.ArgumentParser:
     select.add_argument("--env-kwargs", nargs="+", metavar="KEY:VALUE", help="env arguments over the run's")
     select.add_argument("--device", default="auto", help="device of the models (default: auto)")
     select.add_argument("--out", default=os.path.join("results", "checkpoints"), help="output folder")
+    select.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     add_hub_commands(commands)
     return parser
 

@@ -282,7 +282,8 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     if _has_flag(argv, "-h", "--help"):
         # RL Zoo's help follows, with RL Zoo's own defaults for --algo and --env
         safe = "" if command in PLAY_COMMANDS else "; --safe-config: the -conf entry must hold values only, no code"
-        print(f"{PROG} {command}: {DEFAULTS_HELP}{safe}; RL Zoo's options follow.\n")
+        pictures = f"; {', '.join(PICTURE_FLAGS)}: {PICTURE_FLAGS_HELP}" if command == "train" else ""
+        print(f"{PROG} {command}: {DEFAULTS_HELP}{safe}{pictures}; RL Zoo's options follow.\n")
         return argv
     args, _ = _zoo_preparser(command).parse_known_args(argv)
     _import_gym_packages(args.gym_packages)
@@ -358,6 +359,36 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     return argv
 
 
+QUIET_HELP = "no progress bar (there is none either when stderr is not a terminal)"
+# The library's own train flags, which RL Zoo's parser does not know: what each evaluation draws into TensorBoard
+PICTURE_FLAGS = ("--eval-video", "--no-eval-images")
+PICTURE_FLAGS_HELP = (
+    "with -tb, each evaluation also writes its coverage, fairness, ... and, on the UAV envs, the coverage heat map "
+    "(--no-eval-images: none) and, with --eval-video, a video of one episode; every run writes its hyperparameters "
+    "(TensorBoard's HPARAMS tab)"
+)
+
+
+def pop_picture_flags(command: str, argv: list[str]) -> tuple[list[str], dict[str, bool]]:
+    """
+    Take ``--eval-video`` and ``--no-eval-images`` out of ``train``'s arguments.
+
+    :param command: the command
+    :param argv: its arguments
+    :return: the arguments for RL Zoo, and ``run_train``'s ``eval_images`` and ``eval_video``
+    """
+    given = [arg for arg in argv if arg in PICTURE_FLAGS]
+    if not given:
+        return argv, {}
+    if command != "train":
+        raise UsageError(f"{given[0]} is a train flag (pictures of the evaluations during training)")
+    video, images = "--eval-video" in given, "--no-eval-images" not in given
+    rest = [arg for arg in argv if arg not in PICTURE_FLAGS]
+    if video and not _has_flag(rest, "-tb", "--tensorboard-log", "--track"):
+        raise UsageError("--eval-video writes the video into TensorBoard: give -tb/--tensorboard-log FOLDER too")
+    return rest, {"eval_images": images, "eval_video": video}
+
+
 # ---------------------------------------------------------------------------------------------------------------------
 # Commands
 # ---------------------------------------------------------------------------------------------------------------------
@@ -372,13 +403,14 @@ def run_zoo_command(command: str, argv: list[str]) -> None:
     from sb3_maddpg.zoo import integration
 
     integration.register_with_rl_zoo()
+    argv, pictures = pop_picture_flags(command, argv)
     zoo_argv = prepare_zoo_argv(command, argv)
     if command == "enjoy":
         integration.run_enjoy(zoo_argv)
     elif command == "record-video":
         integration.run_record_video(zoo_argv)
     else:
-        integration.run_train(zoo_argv)
+        integration.run_train(zoo_argv, **pictures)
 
 
 def run_evaluate(args: argparse.Namespace) -> None:
@@ -388,6 +420,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
     :param args: parsed arguments
     """
     from sb3_maddpg.evaluation.baselines import make_baselines
+    from sb3_maddpg.evaluation.progress import wants_progress_bar
     from sb3_maddpg.evaluation.report import (
         DEFAULT_ENV_ID,
         ModelEnvMismatchError,
@@ -464,6 +497,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
             baselines=args.baselines,
             team=args.team,
             opponent=args.opponent,
+            progress=wants_progress_bar(args.quiet),
         )
     except OpponentEnvMismatchError as error:
         raise UsageError(f"--opponent: {error}") from error
@@ -501,6 +535,7 @@ def run_select_checkpoint(args: argparse.Namespace) -> None:
     :param args: parsed arguments
     """
     from sb3_maddpg.evaluation.checkpoints import run_checkpoints, select_checkpoint, write_selection
+    from sb3_maddpg.evaluation.progress import wants_progress_bar
 
     _check_writable(args.out, "--out")
     try:
@@ -514,6 +549,7 @@ def run_select_checkpoint(args: argparse.Namespace) -> None:
             test_seed=args.seed,
             env_kwargs=parse_key_values(args.env_kwargs, "--env-kwargs"),
             device=args.device,
+            progress=wants_progress_bar(args.quiet),
         )
     except ValueError as error:
         raise UsageError(str(error)) from error
@@ -712,6 +748,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     evaluate.add_argument("--no-gif", action="store_true", help="do not write the episode GIF")
     evaluate.add_argument("--verbose", type=int, default=1, help="0: quiet, 1: table, 2: every episode")
+    evaluate.add_argument("--quiet", action="store_true", help=QUIET_HELP)
 
     plot = commands.add_parser(
         "plot",
@@ -743,6 +780,7 @@ def build_parser() -> argparse.ArgumentParser:
     select.add_argument("--env-kwargs", nargs="+", metavar="KEY:VALUE", help="env arguments over the run's")
     select.add_argument("--device", default="auto", help="device of the models (default: auto)")
     select.add_argument("--out", default=os.path.join("results", "checkpoints"), help="output folder")
+    select.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     add_hub_commands(commands)
     return parser
 

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize
+from sb3_maddpg.evaluation.progress import episode_progress
 from sb3_maddpg.evaluation.report import _load_controller, evaluation_env
 
 # RL Zoo's CheckpointCallback names: <prefix>_<timesteps>_steps.zip
@@ -49,6 +50,7 @@ def select_checkpoint(
     env_id: str | None = None,
     env_kwargs: dict[str, Any] | None = None,
     device: str = "auto",
+    progress: bool = False,
 ) -> dict[str, Any]:
     """
     Score each model on the validation episodes by the mean of ``metric``, then run the best one and the last one
@@ -64,6 +66,7 @@ def select_checkpoint(
     :param env_id: the env; by default the run's
     :param env_kwargs: env arguments over the run's (the UAV envs start at random places unless given here)
     :param device: device of the models
+    :param progress: draw a progress bar of all the episodes (validation and test), with the time left, on stderr
     :return: ``scores`` (path, validation mean, per model), ``chosen`` and ``final`` (paths), ``metric``, and
         ``summary`` / ``table`` of the test episodes with the rows ``final model`` and ``best of K checkpoints``
     """
@@ -78,28 +81,33 @@ def select_checkpoint(
     target = evaluation_env(model_paths[-1], env_id, env_kwargs)
     env_id, kwargs = target.env_id, target.kwargs
 
-    def run(path: str | os.PathLike, n_episodes: int, seed: int) -> list[dict[str, float]]:
-        controller = _load_controller(path, env_id, kwargs, device)
-        results, _ = evaluate_controllers(lambda: make_multiagent_env(env_id, **kwargs), [controller], n_episodes, seed)
-        return results[controller.name]
+    total = len(model_paths) * validation_episodes + 2 * test_episodes
+    with episode_progress(total, "select-checkpoint", progress) as advance:
 
-    scores: list[tuple[Path, float]] = []
-    for path in model_paths:
-        episodes = run(path, validation_episodes, validation_seed)
-        if metric is None:
-            metric = "energy_efficiency" if "energy_efficiency" in episodes[0] else "return"
-        if metric not in episodes[0]:
-            raise ValueError(f"metric {metric!r} is not reported by {env_id}; it reports {sorted(episodes[0])}")
-        scores.append((Path(path), sum(episode[metric] for episode in episodes) / len(episodes)))
-    # The first of equal scores: the earliest checkpoint that reached it
-    chosen = max(scores, key=lambda item: item[1])[0]
-    final = Path(model_paths[-1])
-    summary = summarize(
-        {
-            "final model": run(final, test_episodes, test_seed),
-            f"best of {len(scores)} checkpoints ({chosen.name})": run(chosen, test_episodes, test_seed),
-        }
-    )
+        def run(path: str | os.PathLike, n_episodes: int, seed: int) -> list[dict[str, float]]:
+            controller = _load_controller(path, env_id, kwargs, device)
+            results, _ = evaluate_controllers(
+                lambda: make_multiagent_env(env_id, **kwargs), [controller], n_episodes, seed, on_episode=advance
+            )
+            return results[controller.name]
+
+        scores: list[tuple[Path, float]] = []
+        for path in model_paths:
+            episodes = run(path, validation_episodes, validation_seed)
+            if metric is None:
+                metric = "energy_efficiency" if "energy_efficiency" in episodes[0] else "return"
+            if metric not in episodes[0]:
+                raise ValueError(f"metric {metric!r} is not reported by {env_id}; it reports {sorted(episodes[0])}")
+            scores.append((Path(path), sum(episode[metric] for episode in episodes) / len(episodes)))
+        # The first of equal scores: the earliest checkpoint that reached it
+        chosen = max(scores, key=lambda item: item[1])[0]
+        final = Path(model_paths[-1])
+        summary = summarize(
+            {
+                "final model": run(final, test_episodes, test_seed),
+                f"best of {len(scores)} checkpoints ({chosen.name})": run(chosen, test_episodes, test_seed),
+            }
+        )
     return {
         "scores": scores,
         "chosen": chosen,

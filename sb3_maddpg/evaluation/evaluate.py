@@ -140,6 +140,7 @@ def evaluate_controllers(
     state_steps: Sequence[int] = (),
     frame_every: int = 1,
     verbose: int = 0,
+    on_episode: Callable[[], None] | None = None,
 ) -> tuple[dict[str, list[dict[str, float]]], EpisodeRecord | None]:
     """
     Run every controller for the same ``n_episodes`` episodes: episode ``e`` uses seed ``seed + e`` for all of them,
@@ -153,6 +154,7 @@ def evaluate_controllers(
     :param state_steps: steps of the recorded episode whose state images are kept
     :param frame_every: keep one GIF frame every this many steps of the recorded episode
     :param verbose: 1 to print one line per episode
+    :param on_episode: called after each episode (e.g. a progress bar's update)
     :return: controller name -> one metrics dict per episode, and the recorded episode (None if none was asked)
     """
     if n_episodes < 1:
@@ -169,6 +171,8 @@ def evaluate_controllers(
                     this_record = record = EpisodeRecord()
                 metrics = run_episode(env, controller, seed + episode, this_record, state_steps, frame_every)
                 episodes.append(metrics)
+                if on_episode is not None:
+                    on_episode()
                 if verbose:
                     values = "  ".join(
                         f"{METRIC_SYMBOLS.get(key, key)}={metrics[key]:.4f}" for key in _table_keys(metrics) if key in metrics

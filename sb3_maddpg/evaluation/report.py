@@ -22,6 +22,7 @@ from sb3_maddpg.evaluation.figures import (
     save_episode_figures,
     series_from_results,
 )
+from sb3_maddpg.evaluation.progress import episode_progress
 
 DEFAULT_ENV_ID = "uav_coverage_v0"
 
@@ -309,6 +310,7 @@ def evaluate_and_report(
     baselines: Sequence[str] | None = None,
     team: str | None = None,
     opponent: str | os.PathLike = "random",
+    progress: bool = False,
 ) -> dict[str, Any]:
     """
     Run ``n_episodes`` for the model (deterministic actions) and the baselines, print the table and write
@@ -336,6 +338,7 @@ def evaluate_and_report(
         ``adversary_1``, ...), ``opponent`` for the others; and, for comparison, random actions for the team against
         the same opponent. None: the model acts for every agent
     :param opponent: with ``team``: ``"random"``, or a saved model (.zip) that acts for the other agents
+    :param progress: draw a progress bar of the episodes, with the time left, on stderr
     :return: ``summary``, ``results``, ``table``, ``files`` (name -> path) and ``env_kwargs``
     :raises ModelEnvMismatchError: if the model does not fit the env (``OpponentEnvMismatchError``: the opponent)
     """
@@ -377,16 +380,18 @@ def evaluate_and_report(
     if frame_every is None:
         frame_every = max(1, (max_cycles or 100) // 100)
 
-    results, record = evaluate_controllers(
-        lambda: make_multiagent_env(env_id, render_mode=render_mode, **kwargs),
-        controllers,
-        n_episodes,
-        seed=seed,
-        record_controller=record_name,
-        state_steps=state_steps,
-        frame_every=frame_every,
-        verbose=int(verbose >= 2),
-    )
+    with episode_progress(len(controllers) * n_episodes, "evaluate", progress) as advance:
+        results, record = evaluate_controllers(
+            lambda: make_multiagent_env(env_id, render_mode=render_mode, **kwargs),
+            controllers,
+            n_episodes,
+            seed=seed,
+            record_controller=record_name,
+            state_steps=state_steps,
+            frame_every=frame_every,
+            verbose=int(verbose >= 2),
+            on_episode=advance,
+        )
     summary = summarize(results)
     table = format_table(summary)
     if verbose:

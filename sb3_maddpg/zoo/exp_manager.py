@@ -1,6 +1,7 @@
 """RL Zoo's ``ExperimentManager`` and ``create_test_env`` taught to build multi-agent VecEnvs."""
 
 import contextlib
+import functools
 import inspect
 import os
 import pickle
@@ -26,6 +27,8 @@ from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecFrameStac
 
 from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
+from sb3_maddpg.common.eval_tensorboard import EvalTensorBoardCallback
+from sb3_maddpg.common.hparams import HParamsCallback
 from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
 from sb3_maddpg.zoo.monitor import EnjoyVecEnv, JointEpisodeMonitor
 from sb3_maddpg.zoo.registry import (
@@ -35,6 +38,7 @@ from sb3_maddpg.zoo.registry import (
     UsageError,
     check_env_kwargs,
     is_multiagent_env,
+    make_multiagent_env,
 )
 from sb3_maddpg.zoo.run_files import load_vec_normalize, read_as_data
 from sb3_maddpg.zoo.storage import (
@@ -195,7 +199,16 @@ class MultiAgentExperimentManager(ExperimentManager):
     (``n_envs`` copies of the env, ``n_agents`` rows each) and writes one ``monitor.csv`` line per joint episode.
     Everything else (hyperparameters, schedules, callbacks, checkpoints, evaluation, saving, Optuna) is RL Zoo's.
     Single-agent Gymnasium envs go through RL Zoo's own code unchanged.
+
+    With ``-tb``, a trained run also writes its hyperparameters (TensorBoard's HPARAMS tab) and, after each evaluation
+    on a multi-agent env, the evaluation's episode-end metrics and, on the UAV envs, the pictures of
+    :class:`~sb3_maddpg.common.eval_tensorboard.EvalTensorBoardCallback` (``eval_images``, ``eval_video``).
     """
+
+    #: Draw the coverage heat map after each evaluation (``train --no-eval-images`` turns it off)
+    eval_images: bool = True
+    #: Record a video of one evaluation episode (``train --eval-video``)
+    eval_video: bool = False
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -277,6 +290,7 @@ class MultiAgentExperimentManager(ExperimentManager):
             result = super().setup_experiment()
             if result is not None:
                 self._check_eval_env(result[0])
+                self.callbacks.append(HParamsCallback(self.run_hyperparameters(result[1])))
             return result
         except (ValueError, TypeError) as error:
             if not folder_existed:
@@ -303,6 +317,22 @@ class MultiAgentExperimentManager(ExperimentManager):
                 self.save_path = f"{prefix}{number}{suffix}"
                 self.params_path = f"{self.save_path}/{self.env_name}"
         os.makedirs(self.params_path, exist_ok=True)
+
+    def run_hyperparameters(self, saved_hyperparams: dict[str, Any]) -> dict[str, Any]:
+        """
+        What TensorBoard's HPARAMS tab shows of a run: the algorithm, the env, the seed, the YAML entry as trained
+        (``config.yml``: after ``-params``, with its ``env_kwargs``), the timesteps and, for ``--trial-id``, the study.
+
+        :param saved_hyperparams: the entry as RL Zoo saves it
+        :return: name -> value
+        """
+        hyperparams: dict[str, Any] = {"algo": self.algo, "env": self.env_name.gym_id, "seed": self.seed}
+        hyperparams.update(saved_hyperparams)
+        hyperparams["n_timesteps"] = self.n_timesteps
+        hyperparams["env_kwargs"] = dict(self.env_kwargs)
+        if self.trial_id is not None:
+            hyperparams.update({"study_name": self.study_name, "trial_id": self.trial_id})
+        return hyperparams
 
     def _check_eval_env(self, model: BaseAlgorithm) -> None:
         """
@@ -529,6 +559,19 @@ class MultiAgentExperimentManager(ExperimentManager):
                     # evaluate_policy asks for a Monitor; without one it counts each agent row's return, which is
                     # what it should report here (the mean return of an agent), so the warning is noise.
                     callback.warn = False
+                    if callback.callback is None:
+                        self._add_eval_tensorboard(callback)
+
+    def _add_eval_tensorboard(self, eval_callback: EvalCallback) -> None:
+        """After each evaluation, its metrics and pictures in TensorBoard (RL Zoo's EvalCallback has no after-eval one)."""
+        drawn = self.eval_images or self.eval_video
+        make_env = functools.partial(make_multiagent_env, self.env_name.gym_id, **self.eval_env_kwargs) if drawn else None
+        after_eval = EvalTensorBoardCallback(
+            make_env, images=self.eval_images, video=self.eval_video, seed=self.seed, verbose=self.verbose
+        )
+        # What EvalCallback(callback_after_eval=...) does when it is given one
+        eval_callback.callback = after_eval
+        after_eval.parent = eval_callback
 
     def create_envs(self, n_envs: int, eval_env: bool = False, no_log: bool = False) -> VecEnv:
         if not is_multiagent_env(self.env_name.gym_id):

@@ -61,11 +61,13 @@ def _patch_enjoy() -> Any:
     return enjoy_module
 
 
-def run_train(argv: list[str]) -> None:
+def run_train(argv: list[str], eval_images: bool = True, eval_video: bool = False) -> None:
     """
     RL Zoo's ``train`` (also ``-optimize``) with the given command-line arguments.
 
     :param argv: arguments as for ``python -m rl_zoo3.train``
+    :param eval_images: with ``-tb``, draw the coverage heat map after each evaluation (the UAV envs)
+    :param eval_video: with ``-tb``, record a video of one episode after each evaluation (the UAV envs)
     :raises TrainingStopped: after the final save, when SIGTERM or an env worker process that ended stopped the run
     """
     import sys
@@ -91,9 +93,14 @@ def run_train(argv: list[str]) -> None:
 
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, stop) if in_main_thread else None
+    manager = rl_zoo3.train.ExperimentManager
+    # This run's picture settings, on a subclass that train() builds: the registered class is left as it is
+    settings = {"eval_images": eval_images, "eval_video": eval_video}
+    rl_zoo3.train.ExperimentManager = type(manager.__name__, (manager,), settings)  # type: ignore[misc]
     try:
         rl_zoo3.train.train()
     finally:
+        rl_zoo3.train.ExperimentManager = manager  # type: ignore[misc]
         sys.argv = saved
         if saved_orig is not None:
             sys.orig_argv = saved_orig

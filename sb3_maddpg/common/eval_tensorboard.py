@@ -25,7 +25,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Image, Video
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStack, VecNormalize, VecTransposeImage
 
-from sb3_maddpg.common.callbacks import EPISODE_METRIC_KEYS
+from sb3_maddpg.common.callbacks import declared_episode_metrics
 from sb3_maddpg.common.hparams import tensorboard_formats, write_to_tensorboard
 from sb3_maddpg.common.validation import check_int
 
@@ -247,12 +247,14 @@ class EvalTensorBoardCallback(BaseCallback):
 
     def _eval_metrics(self) -> dict[str, float]:
         """The mean episode-end metrics of the episodes the evaluation env ended since the previous evaluation."""
-        rows = _episode_rows(getattr(self.parent, "eval_env", None))
+        eval_env = getattr(self.parent, "eval_env", None)
+        rows = _episode_rows(eval_env)
         if rows is None:
             return {}
         new, self._seen_episodes = rows[self._seen_episodes :], len(rows)
         means = {}
-        for key in EPISODE_METRIC_KEYS:
+        keys, _ = declared_episode_metrics(eval_env)
+        for key in keys:
             values = [float(row[key]) for row in new if row.get(key, "") != ""]
             if values:
                 means[f"eval/{key}"] = float(np.mean(values))

@@ -110,9 +110,11 @@ STORM: dict[str, Any] = {
 #:   1 - 0.93^10 = 0.52, more than twice alpha 0.25;
 #: - a strike costs p_k = 0.9 in its own step and grounds the UAV for 3 steps (no grounded penalty): the whole cost
 #:   lands inside the horizon, where the old task's 20 grounded steps at -0.75 lay mostly beyond it;
-#: - the zone holds PoIs worth covering: a team hovering there earns 0.052 a step more than one kept out (calm), more
-#:   than the mean cost of its strikes (about 0.07 x (0.9 - 0.28) = 0.043 a step, 0.28 the teammates' gain while
-#:   the struck UAV is grounded), and less than their cost in the worst case.
+#: - the zone holds PoIs worth covering: without strikes the greedy team hovering there earns 15.6 an episode (0.052
+#:   a step) more than one kept out; with them its UAV inside is struck about 17.6 times an episode, each strike
+#:   costing the team 0.9 - 0.25 = 0.65 (0.25 the teammates' gain while the struck UAV is grounded), 11.5 on
+#:   average: the mean prefers entering, the worst decile (about 23 strikes) and CVaR_0.25 of a 10-step return
+#:   (1.25 discounted strikes against 0.60 on average) keeping out.
 #:
 #: The same link failures as the other hazard tasks; no gusts.
 STORM_V2: dict[str, Any] = {

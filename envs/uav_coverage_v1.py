@@ -21,16 +21,18 @@ compare directly. `docs/environment.md` lists each difference with the reason an
 uav_coverage_v1.parallel_env(**V1_DEFAULTS, obs_size=16)   # any parameter of v0 can be given
 uav_coverage_v1.parallel_env(**HAZARDS, obs_size=16)        # the hazardous task (uav_coverage_hazard_cpu_v1)
 uav_coverage_v1.parallel_env(**STORM, obs_size=16)          # the storm task (uav_coverage_storm_cpu_v1)
+uav_coverage_v1.parallel_env(**STORM_V2, obs_size=16)       # the storm task redesigned (uav_coverage_storm_cpu_v2)
 ```
 
 Hazards are off by default (v0 and v1 as above); `HAZARDS` switches on the setting of the hazardous task, where
 a team hugging the walls has the better mean team return and one keeping a margin the better worst decile
 (docs/environment.md, "Hazards"). `STORM` switches on the storm task instead: no gusts, a storm over the middle of the
 map that can strike a UAV hovering there and ground it; covering the middle from inside pays on average, keeping out
-of it has the better worst decile.
+of it has the better worst decile. `STORM_V2` redesigns it for a critic that looks about 10 steps ahead: a smaller
+zone drawn in the observations, strikes at 7 % of a UAV's steps there, each costing at once and grounding for 3 steps.
 
-The tasks are the scenarios of ``sb3_maddpg_envs.uav_coverage.scenarios`` (``V1``, ``HAZARD``, ``STORM_TASK``), where
-``V1_DEFAULTS``, ``HAZARDS`` and ``STORM`` are defined and explained.
+The tasks are the scenarios of ``sb3_maddpg_envs.uav_coverage.scenarios`` (``V1``, ``HAZARD``, ``STORM_TASK``,
+``STORM_V2_TASK``), where ``V1_DEFAULTS``, ``HAZARDS``, ``STORM`` and ``STORM_V2`` are defined and explained.
 """
 
 from typing import Any
@@ -38,9 +40,29 @@ from typing import Any
 from pettingzoo.utils.env import AECEnv
 
 from sb3_maddpg_envs.uav_coverage import uav_coverage
-from sb3_maddpg_envs.uav_coverage.scenarios import HAZARD, HAZARDS, STORM, STORM_TASK, V1, V1_DEFAULTS
+from sb3_maddpg_envs.uav_coverage.scenarios import (
+    HAZARD,
+    HAZARDS,
+    STORM,
+    STORM_TASK,
+    STORM_V2,
+    STORM_V2_TASK,
+    V1,
+    V1_DEFAULTS,
+)
 
-__all__ = ["HAZARDS", "STORM", "V1_DEFAULTS", "env", "hazard_parallel_env", "parallel_env", "raw_env", "storm_parallel_env"]
+__all__ = [
+    "HAZARDS",
+    "STORM",
+    "STORM_V2",
+    "V1_DEFAULTS",
+    "env",
+    "hazard_parallel_env",
+    "parallel_env",
+    "raw_env",
+    "storm_parallel_env",
+    "storm_v2_parallel_env",
+]
 
 
 def parallel_env(**kwargs: Any) -> uav_coverage.UAVCoverageEnv:
@@ -68,6 +90,16 @@ def storm_parallel_env(**kwargs: Any) -> uav_coverage.UAVCoverageEnv:
     :param kwargs: as for :func:`parallel_env`; they override v1's defaults and the storm
     """
     return STORM_TASK.parallel_env(**kwargs)
+
+
+def storm_v2_parallel_env(**kwargs: Any) -> uav_coverage.UAVCoverageEnv:
+    """
+    The storm task redesigned as a PettingZoo ``ParallelEnv``: v1's defaults with :data:`STORM_V2`
+    (``scenarios.STORM_V2_TASK``): the zone drawn on channel 0, strikes that cost at once and ground for 3 steps.
+
+    :param kwargs: as for :func:`parallel_env`; they override v1's defaults and the storm
+    """
+    return STORM_V2_TASK.parallel_env(**kwargs)
 
 
 def raw_env(**kwargs: Any) -> AECEnv:

@@ -3,11 +3,12 @@ SHA-256 fingerprints of the UAV coverage env's behaviour, to check that a refact
 changes nothing: run it before and after, the hashes must be equal.
 
 Each case builds a registered env (``uav_coverage_v0``, ``uav_coverage_fast_v0``, ``uav_coverage_v1``,
-``uav_coverage_cpu_v1``, ``uav_coverage_tmc_v1``, ``uav_coverage_hazard_cpu_v1``, ``uav_coverage_storm_cpu_v1``, with the
-kwargs of ``sb3_maddpg/zoo/registry.py``, plus parameter combinations that exercise the other rules: the hazards' gusts,
-crashes, link failures, storm strikes, grounded steps and depletions among them), then plays several episodes with
-seeded random actions (drawn in [-0.1, 1.1], so the clipping is exercised too), resetting with a seed or without one,
-and hashes every observation, reward, termination, truncation and info, and the state after each step. The greedy
+``uav_coverage_cpu_v1``, ``uav_coverage_tmc_v1``, ``uav_coverage_hazard_cpu_v1``, ``uav_coverage_storm_cpu_v1``,
+``uav_coverage_storm_cpu_v2``, with the kwargs of ``sb3_maddpg/zoo/registry.py``, plus parameter combinations that
+exercise the other rules: the hazards' gusts, crashes, link failures, storm strikes and their penalty, the storm zone
+drawn, grounded steps and depletions among them), then plays several episodes with seeded random actions (drawn in
+[-0.1, 1.1], so the clipping is exercised too), resetting with a seed or without one, and hashes every observation,
+reward, termination, truncation and info, and the state after each step. The greedy
 cases act with the greedy baseline of ``sb3_maddpg.evaluation.baselines`` instead and hash its scores too.
 
     python experiments/env_fingerprint.py          # one line per case, then the hash of all cases
@@ -88,6 +89,22 @@ CASES: list[tuple[str, str, dict[str, Any], int]] = [
         300,
     ),
     ("hazard_cpu_v1 one uav", "uav_coverage_hazard_cpu_v1", {"n_uavs": 1, "gust_tail": 1.0}, 200),
+    # added with the redesigned storm (2026-12-07): the lines above keep their hashes
+    ("storm_cpu_v2", "uav_coverage_storm_cpu_v2", {}, 400),
+    (
+        "v0 storm zone shown at 5 pixels per cell, strike penalty, gusts",
+        "uav_coverage_v0",
+        {
+            "storm_zone": (2.5, 1.0, 9.3, 7.7),
+            "storm_prob": 0.2,
+            "storm_penalty": 2.0,
+            "crash_ground_steps": 2,
+            "show_storm_zone": True,
+            "gust_prob": 0.2,
+            "n_uavs": 3,
+        },
+        200,
+    ),
 ]
 
 #: (label, registered env id, kwargs over the registered ones, steps): played by the greedy baseline

@@ -9,9 +9,14 @@ better worst decile (the mean of the worst 10 % of the episodes).
 On a task with a storm zone (``--env uav_coverage_storm_cpu_v1``, or ``--env-kwargs storm_zone:[x0,y0,x1,y1]
 storm_prob:P ...``) the two policies are the greedy
 placement anywhere (``enter_storm``: spots inside the zone, where a strike can ground a hovering UAV) and the greedy
-placement outside the zone (``avoid_storm``: its inner PoIs lost, no strikes while hovering).
+placement outside the zone (``avoid_storm``: its inner PoIs lost, no strikes while hovering). On the redesigned storm
+task (``--env uav_coverage_storm_cpu_v2``) the greedy placement puts its middle spot inside the zone, so
+``enter_storm`` is the placement using the zone's PoIs and ``avoid_storm`` the one restricted outside it; with
+``--env-kwargs storm_prob:0`` the same two placements without strikes (the calm control).
 
     taskset -c 1 python experiments/hazard_policies.py --episodes 200 --out experiments/results/2026-12-04-hazard
+    taskset -c 1 python experiments/hazard_policies.py --env uav_coverage_storm_cpu_v2 --episodes 200 --seed 10000 \
+        --out experiments/results/2026-12-07-storm-v2/policies
 
 It prints the table of ``python -m sb3_maddpg evaluate`` (mean ± std, worst decile, hazard events per episode) and
 writes ``results.csv``, ``results.json``, ``episodes.csv`` and ``results.md`` into ``--out``.
@@ -53,7 +58,8 @@ def compare(n_episodes: int, seed: int = 0, margin: float = MARGIN, env_id: str 
     :param env_kwargs: over the registered env's (``start`` is ``"random"`` already, v1's default)
     :return: ``results`` (policy -> per-episode metrics) and ``summary`` (rows of ``summarize``)
     """
-    storm = make_multiagent_env(env_id, **env_kwargs).core.storm_prob > 0.0
+    # a task with a storm zone compares entering it with avoiding it (with storm_prob 0 too: the calm control)
+    storm = make_multiagent_env(env_id, **env_kwargs).core.storm_zone is not None
     results, _ = evaluate_controllers(
         lambda: make_multiagent_env(env_id, **env_kwargs), policies(margin, storm), n_episodes, seed=seed
     )

@@ -21,6 +21,7 @@ REGISTERED = {
     "uav_coverage_tmc_v1": (scenarios.TMC2020, {}),
     "uav_coverage_hazard_cpu_v1": (scenarios.HAZARD, {"obs_size": 16}),
     "uav_coverage_storm_cpu_v1": (scenarios.STORM_TASK, {"obs_size": 16}),
+    "uav_coverage_storm_cpu_v2": (scenarios.STORM_V2_TASK, {"obs_size": 16}),
 }
 
 
@@ -45,6 +46,8 @@ def test_scenario_tables_are_the_versioned_modules_and_the_registry():
     assert scenarios.V1.defaults == uav_coverage_v1.V1_DEFAULTS
     assert scenarios.HAZARD.defaults == {**uav_coverage_v1.V1_DEFAULTS, **uav_coverage_v1.HAZARDS}
     assert scenarios.STORM_TASK.defaults == {**uav_coverage_v1.V1_DEFAULTS, **uav_coverage_v1.STORM}
+    assert uav_coverage_v1.STORM_V2 is scenarios.STORM_V2
+    assert scenarios.STORM_V2_TASK.defaults == {**uav_coverage_v1.V1_DEFAULTS, **uav_coverage_v1.STORM_V2}
     assert scenarios.V0.defaults == {} and uav_coverage_v0.parallel_env(obs_size=16).metadata["name"] == "uav_coverage_v0"
 
 
@@ -54,7 +57,7 @@ def test_a_calm_task_has_no_hazard_hook(env_id: str):
     assert env.core.hazard_hook is None and not env.core.hazards
 
 
-@pytest.mark.parametrize("env_id", ["uav_coverage_hazard_cpu_v1", "uav_coverage_storm_cpu_v1"])
+@pytest.mark.parametrize("env_id", ["uav_coverage_hazard_cpu_v1", "uav_coverage_storm_cpu_v1", "uav_coverage_storm_cpu_v2"])
 def test_a_hazardous_task_has_a_hazard_hook(env_id: str):
     core = make_multiagent_env(env_id).core
     assert isinstance(core.hazard_hook, HazardHook) and core.hazard_hook.config is core.config

@@ -192,12 +192,19 @@ class UAVCoverageConfig:
         flies again are then observable, so its return while grounded is a function of its observation (it stays
         absent from its teammates' teammate channel: it has no links)
     :param storm_zone: hazard: a rectangle (x0, y0, x1, y1) of the area where a storm can strike a UAV down (None, the
-        default, is no zone); the same in every episode, like terrain, and not drawn in the observations: a policy
-        learns where it is from its own position
+        default, is no zone); the same in every episode, like terrain, and drawn in the observations only with
+        ``show_storm_zone`` (without it, a policy learns where the zone is from its own position)
     :param storm_prob: p_s, hazard: the probability that an active UAV inside ``storm_zone`` at the end of a step is
         struck (0, the default, is never). A strike does not move the UAV; it is a crash: it loses ``crash_energy``
         and is grounded for ``crash_ground_steps`` (one of the two must be set), counted in the ``crashes``. So the
         zone's PoIs are worth covering on average and costly in the worst case
+    :param storm_penalty: p_k, hazard: charged to a struck UAV in the step of the strike (0, the default, is nothing),
+        on top of what the crash costs: the strike's cost lands at once, inside a discounted critic's horizon, where
+        k grounded steps spread it over the next k steps
+    :param show_storm_zone: if True, channel 0 of the observations and of the state shows the storm zone: each pixel
+        whose centre lies in ``storm_zone`` holds 128 where its cell holds a PoI and 64 where it does not (instead of
+        255 and 0), so the zone is a visible function of the image and not only of the UAV's position; the
+        observation space is unchanged (False, the default, draws no zone)
     """
 
     map_size: int = _checked(16, _int(1, MAX_MAP_SIZE))
@@ -242,6 +249,8 @@ class UAVCoverageConfig:
     show_grounded: bool = _checked(False, _flag("True or False"))
     storm_zone: tuple[float, float, float, float] | None = _checked(None, _storm_zone)
     storm_prob: float = _checked(0.0, _storm_prob)
+    storm_penalty: float = _checked(0.0, _real(low_inclusive=True))
+    show_storm_zone: bool = _checked(False, _flag("True or False"))
 
     # --- read from the parameters by __post_init__ ---------------------------------------------------------------------
     #: ``"grid"``, ``"uniform"``, ``"array"`` or ``"image"``
@@ -271,6 +280,8 @@ class UAVCoverageConfig:
                 "crash_ground_steps": (self.crash_ground_steps > 0 and not crashing, no_crash),
                 "crash_energy": (self.crash_energy > 0.0 and not crashing, no_crash),
                 "show_grounded": (self.show_grounded and self.crash_ground_steps == 0, "crash_ground_steps is 0"),
+                "storm_penalty": (self.storm_penalty > 0.0 and self.storm_prob == 0.0, "storm_prob is 0, so no storm strikes"),
+                "show_storm_zone": (self.show_storm_zone and self.storm_zone is None, "storm_zone is None, there is no zone"),
             },
             stacklevel=4,
         )
@@ -317,7 +328,8 @@ def config_from_old_state(state: dict[str, Any]) -> UAVCoverageConfig:
     :return: the config
     """
     names = [f.name for f in fields(UAVCoverageConfig) if f.init and f.name not in ("pois", "n_pois", "start")]
-    kwargs = {name: state.pop(name) for name in names}
+    # parameters added since that layout take their defaults
+    kwargs = {name: state.pop(name) for name in names if name in state}
     pois_mode, n_pois, start_mode, start_points = (state.pop(key) for key in _OLD_LAYOUT_DERIVED[:4])
     for key in _OLD_LAYOUT_DERIVED[4:]:
         state.pop(key)

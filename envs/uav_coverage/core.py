@@ -70,9 +70,11 @@ class StepRecord:
     rho: np.ndarray | None = None
     wall_hit: np.ndarray | None = None
     wall_cost: np.ndarray | None = None
-    #: hazards: the UAVs a gust hit, those it crashed, those crashed or struck by the storm, those cut off by failures
+    #: hazards: the UAVs a gust hit, those it crashed, those the storm struck, those crashed or struck, those cut off
+    #: by failures
     hit: np.ndarray | None = None
     crashed: np.ndarray | None = None
+    struck: np.ndarray | None = None
     downed: np.ndarray | None = None
     cut_off: np.ndarray | None = None
     #: (N,) energy spent this step
@@ -112,7 +114,12 @@ class UAVCoverageCore:
         self.config = config
         #: the hazards' part of the step, or None for a calm task
         self.hazard_hook = HazardHook(config) if config.hazards else None
-        self._images = ObservationDrawer(config.map_size, config.obs_size, config.position_mark)
+        self._images = ObservationDrawer(
+            config.map_size,
+            config.obs_size,
+            config.position_mark,
+            config.storm_zone if config.show_storm_zone else None,
+        )
         #: s, pixels per cell side of the observation images
         self.block = self._images.block
         self.pois: np.ndarray | None = None

@@ -194,7 +194,7 @@ class HazardHook:
         if downed is not None:
             core.last_crashed[...] = downed
             core.grounded_steps_left[downed] = config.crash_ground_steps
-        step.hit, step.crashed, step.downed = hit, crashed, downed
+        step.hit, step.crashed, step.struck, step.downed = hit, crashed, struck, downed
 
     def charge(self, core: Any, step: Any, spent: np.ndarray) -> None:
         """A crash costs E_c more than the flight, never more than what is left: added to ``spent`` in place."""
@@ -216,10 +216,12 @@ class HazardHook:
         return working
 
     def penalize(self, step: Any, penalties: np.ndarray) -> np.ndarray:
-        """A gust's crash is charged the wall penalty p_w."""
-        if step.crashed is None:
-            return penalties
-        return penalties + self.config.wall_penalty * step.crashed
+        """A gust's crash is charged the wall penalty p_w, a strike the storm's penalty p_k (in the strike's step)."""
+        if step.crashed is not None:
+            penalties = penalties + self.config.wall_penalty * step.crashed
+        if step.struck is not None and self.config.storm_penalty > 0.0:
+            penalties = penalties + self.config.storm_penalty * step.struck
+        return penalties
 
     def charge_grounded(self, step: Any, rewards: np.ndarray) -> None:
         """A grounded UAV's reward is -``reward_scale`` p_d (before clipping), in place."""

@@ -4,7 +4,8 @@ The observation images and the state: an (S, S) image of an L x L map, s = S / L
 Channels: 0 the PoIs (255 on every cell holding one, drawn once per set of PoIs), 1 the UAVs (round(255 E / E_max),
 at least 1 while active; the agent itself in an observation, every UAV in the state), 2 the coverage history
 (round(255 c_t(k)), the maximum over a cell's PoIs), and in observations with the teammate channel 3 the active
-teammates within radio range R. Row 0 is the top of the map (the largest y).
+teammates within radio range R. Row 0 is the top of the map (the largest y). With a storm zone shown, channel 0
+holds 128 on the zone's PoI cells and 64 on its other pixels (a pixel is in the zone when its centre is).
 
 Images are written through reshaped views of (S, S) as (L, s, L, s) cell blocks, so there is no Python loop over
 UAVs or PoIs.
@@ -14,10 +15,32 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["POSITION_MARKS", "ObservationDrawer", "uav_values"]
+from .hazards import in_zone
+
+__all__ = ["POSITION_MARKS", "ZONE_EMPTY_VALUE", "ZONE_POI_VALUE", "ObservationDrawer", "uav_values", "zone_pixels"]
 
 #: How a UAV is drawn on channel 1; the first is the report's (``uav_coverage_v0``), the second v1's.
 POSITION_MARKS = ("cell", "exact")
+#: Channel 0 inside a shown storm zone: a PoI cell's pixels (255 outside the zone) and the other pixels (0 outside).
+#: Both are apart from 0 and 255, so the zone and the PoIs stay readable at once.
+ZONE_POI_VALUE = 128
+ZONE_EMPTY_VALUE = 64
+
+
+def zone_pixels(zone: tuple[float, float, float, float], map_size: int, obs_size: int) -> np.ndarray:
+    """
+    The pixels of an (S, S) image whose centre lies in a rectangle of the map (lower edges included, upper ones
+    excluded, as for the storm's strikes). Pixel (r, c) has its centre at map point ((c + 1/2) / s, (S - r - 1/2) / s),
+    s = S / L.
+
+    :param zone: (x0, y0, x1, y1)
+    :param map_size: L
+    :param obs_size: S
+    :return: (S, S) bool, row 0 at the top (the largest y)
+    """
+    centres = (np.arange(obs_size, dtype=np.float64) + 0.5) * (map_size / obs_size)
+    xx, yy = np.meshgrid(centres, centres[::-1], indexing="xy")
+    return in_zone(np.stack([xx.ravel(), yy.ravel()], axis=1), zone).reshape(obs_size, obs_size)
 
 
 def uav_values(energy: np.ndarray, max_energy: float, active: np.ndarray) -> np.ndarray:
@@ -36,12 +59,20 @@ class ObservationDrawer:
     :param obs_size: S, a positive multiple of L
     :param position_mark: ``"cell"`` (a UAV fills its cell's block) or ``"exact"`` (an anti-aliased square of one
         cell's size centred on its exact position)
+    :param storm_zone: a rectangle (x0, y0, x1, y1) drawn on channel 0 (:data:`ZONE_POI_VALUE`,
+        :data:`ZONE_EMPTY_VALUE`), or None to draw none
     """
 
-    def __init__(self, map_size: int, obs_size: int, position_mark: str) -> None:
+    #: a class default, so that a drawer pickled before the zone could be drawn reads as drawing none
+    storm_zone: tuple[float, float, float, float] | None = None
+
+    def __init__(
+        self, map_size: int, obs_size: int, position_mark: str, storm_zone: tuple[float, float, float, float] | None = None
+    ) -> None:
         self.map_size = map_size
         self.obs_size = obs_size
         self.position_mark = position_mark
+        self.storm_zone = storm_zone
         #: s, pixels per cell side
         self.block = obs_size // map_size
         self.template = np.zeros((3, obs_size, obs_size), dtype=np.uint8)
@@ -78,6 +109,9 @@ class ObservationDrawer:
         poi_grid = np.zeros(self.map_size * self.map_size, dtype=np.uint8)
         poi_grid[self._poi_cells] = 255
         self.blocks(self.template[0])[...] = poi_grid.reshape(self.map_size, 1, self.map_size, 1)
+        if self.storm_zone is not None:
+            inside = zone_pixels(self.storm_zone, self.map_size, self.obs_size)
+            self.template[0][inside] = np.where(self.template[0][inside] > 0, ZONE_POI_VALUE, ZONE_EMPTY_VALUE)
         self.template[1:] = 0
 
     def clear_coverage(self) -> None:

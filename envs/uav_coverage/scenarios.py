@@ -10,7 +10,9 @@ the parameters (``reward_mode``, ``position_mark``, ...), so any task's rule can
 - :data:`V1`: version 1 (``uav_coverage_v1``), :data:`V1_DEFAULTS`: the defaults that learn;
 - :data:`TMC2020`: the published setting of Liu et al. (IEEE TMC 2020) on v1's rules, :data:`TMC2020_KWARGS`;
 - :data:`HAZARD`: v1 with :data:`HAZARDS`, the hazardous task (``uav_coverage_hazard_cpu_v1``);
-- :data:`STORM_TASK`: v1 with :data:`STORM`, the storm task (``uav_coverage_storm_cpu_v1``).
+- :data:`STORM_TASK`: v1 with :data:`STORM`, the storm task (``uav_coverage_storm_cpu_v1``);
+- :data:`STORM_V2_TASK`: v1 with :data:`STORM_V2`, the storm task redesigned for a discounted quantile critic
+  (``uav_coverage_storm_cpu_v2``): the zone drawn in the observations, frequent strikes that cost at once.
 
 The registered env ids (``sb3_maddpg/zoo/registry.py``) build these scenarios, some at another ``obs_size``.
 """
@@ -33,6 +35,8 @@ __all__ = [
     "SCENARIOS",
     "STORM",
     "STORM_TASK",
+    "STORM_V2",
+    "STORM_V2_TASK",
     "TMC2020",
     "TMC2020_KWARGS",
     "V0",
@@ -97,6 +101,31 @@ STORM: dict[str, Any] = {
     "link_failure_prob": 0.05,
 }
 
+#: The hazards of the storm task redesigned (``uav_coverage_storm_cpu_v2``), so that a critic that looks about 10 steps
+#: ahead (gamma 0.9) sees the storm in its lower tail (docs/environment.md, "Hazards", has the numbers):
+#:
+#: - the zone, 5 x 5 cells (5, 3)-(10, 8) around the greedy placement's middle spot (7.5, 5.5), is drawn on channel 0
+#:   of the observations and the state (``show_storm_zone``), so the risk is a function of the image;
+#: - a UAV inside is struck at 7 % of its steps: from a state inside, a strike within 10 steps has probability
+#:   1 - 0.93^10 = 0.52, more than twice alpha 0.25;
+#: - a strike costs p_k = 0.9 in its own step and grounds the UAV for 3 steps (no grounded penalty): the whole cost
+#:   lands inside the horizon, where the old task's 20 grounded steps at -0.75 lay mostly beyond it;
+#: - the zone holds PoIs worth covering: without strikes the greedy team hovering there earns 15.6 an episode (0.052
+#:   a step) more than one kept out; with them its UAV inside is struck about 17.6 times an episode, each strike
+#:   costing the team 0.9 - 0.25 = 0.65 (0.25 the teammates' gain while the struck UAV is grounded), 11.5 on
+#:   average: the mean prefers entering, the worst decile (about 23 strikes) and CVaR_0.25 of a 10-step return
+#:   (1.25 discounted strikes against 0.60 on average) keeping out.
+#:
+#: The same link failures as the other hazard tasks; no gusts.
+STORM_V2: dict[str, Any] = {
+    "storm_zone": (5.0, 3.0, 10.0, 8.0),
+    "storm_prob": 0.07,
+    "storm_penalty": 0.9,
+    "crash_ground_steps": 3,
+    "show_storm_zone": True,
+    "link_failure_prob": 0.05,
+}
+
 
 class UAVCoverageScenario:
     """
@@ -147,5 +176,13 @@ V1 = UAVCoverageScenario("uav_coverage_v1", V1_DEFAULTS)
 TMC2020 = UAVCoverageScenario("uav_coverage_v1", V1_DEFAULTS, TMC2020_KWARGS)
 HAZARD = UAVCoverageScenario("uav_coverage_v1", V1_DEFAULTS, HAZARDS)
 STORM_TASK = UAVCoverageScenario("uav_coverage_v1", V1_DEFAULTS, STORM)
+STORM_V2_TASK = UAVCoverageScenario("uav_coverage_v1", V1_DEFAULTS, STORM_V2)
 #: The scenarios by short name
-SCENARIOS: dict[str, UAVCoverageScenario] = {"v0": V0, "v1": V1, "tmc2020": TMC2020, "hazard": HAZARD, "storm": STORM_TASK}
+SCENARIOS: dict[str, UAVCoverageScenario] = {
+    "v0": V0,
+    "v1": V1,
+    "tmc2020": TMC2020,
+    "hazard": HAZARD,
+    "storm": STORM_TASK,
+    "storm_v2": STORM_V2_TASK,
+}

@@ -198,6 +198,9 @@ register_multiagent_env("uav_coverage_hazard_cpu_v1", "sb3_maddpg_envs.uav_cover
 # The storm task on the CPU variant: a storm over the middle of the map that grounds a UAV it strikes
 # (uav_coverage_v1.STORM; docs/environment.md, "Hazards"), where the risk-neutral and the risk-averse optimum differ.
 register_multiagent_env("uav_coverage_storm_cpu_v1", "sb3_maddpg_envs.uav_coverage_v1:storm_parallel_env", {"obs_size": 16})
+# The storm task redesigned so that a critic looking about 10 steps ahead sees it (uav_coverage_v1.STORM_V2): the zone
+# drawn on channel 0, strikes frequent inside it, each costing at once; the old task stays for comparison.
+register_multiagent_env("uav_coverage_storm_cpu_v2", "sb3_maddpg_envs.uav_coverage_v1:storm_v2_parallel_env", {"obs_size": 16})
 # A small task where the mean and the lower tail prefer different ways (a visible risky zone across the short way):
 # the proving ground of the CVaR actor (sb3_maddpg_envs/risky_reach_v0.py).
 register_multiagent_env("risky_reach_v0", "sb3_maddpg_envs.risky_reach_v0:parallel_env")

@@ -3,8 +3,9 @@ hugging the walls has the better mean team return, the one keeping a margin of 3
 (experiments/hazard_policies.py measures it on 200 episodes; here the same seeds, fewer episodes). The same on the
 storm task between the greedy placement anywhere and the one keeping out of the storm zone."""
 
-from sb3_maddpg.evaluation import GreedyStaticController, evaluate_controllers, summarize
+from sb3_maddpg.evaluation import evaluate_controllers, summarize
 from sb3_maddpg.zoo.registry import make_multiagent_env
+from sb3_maddpg_envs.uav_coverage.baselines import GreedyStaticController
 
 N_EPISODES = 40
 

@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from sb3_maddpg.evaluation.baselines import GREEDY_STEP_HEADINGS, greedy_step_scores, step_actions
 from sb3_maddpg.zoo.registry import make_multiagent_env
+from sb3_maddpg_envs.uav_coverage.baselines import GREEDY_STEP_HEADINGS, greedy_step_scores, step_actions
 
 #: (label, registered env id, kwargs over the registered ones, steps)
 CASES: list[tuple[str, str, dict[str, Any], int]] = [

@@ -27,9 +27,9 @@ import sys
 from typing import Any
 
 from sb3_maddpg.__main__ import parse_key_values
-from sb3_maddpg.evaluation.baselines import GreedyStaticController
 from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
 from sb3_maddpg.zoo.registry import UsageError, make_multiagent_env
+from sb3_maddpg_envs.uav_coverage.baselines import GreedyStaticController
 
 ENV_ID = "uav_coverage_hazard_cpu_v1"
 #: How far from every wall the cautious placement keeps its spots, in cells.

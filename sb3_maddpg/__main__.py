@@ -426,10 +426,10 @@ def run_evaluate(args: argparse.Namespace) -> None:
         ModelEnvMismatchError,
         OpponentEnvMismatchError,
         check_state_steps,
-        episode_limit,
         evaluate_and_report,
         find_run_config,
     )
+    from sb3_maddpg.evaluation.task_tools import episode_limit, task_tools
     from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
 
     _import_gym_packages(args.gym_packages)
@@ -452,11 +452,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
     check_env_kwargs(env_id, {**run_env_kwargs, **env_kwargs}, flag="--env-kwargs")
     # What the checks below need from the env, before any model is loaded or episode run
     probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
-    is_uav_env, agents, max_cycles = (
-        getattr(probe, "core", None) is not None,
-        list(probe.possible_agents),
-        episode_limit(probe),
-    )
+    tools, agents, max_cycles = task_tools(probe), list(probe.possible_agents), episode_limit(probe)
     probe.close()
     try:
         check_state_steps(args.state_steps, max_cycles)
@@ -464,7 +460,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
         raise UsageError(f"--state-steps: {error} ({env_id})") from error
     if args.baselines is not None:
         try:
-            make_baselines(args.baselines, uav_env=is_uav_env)  # its own checks
+            make_baselines(args.baselines, tools)  # its own checks
         except ValueError as error:
             raise UsageError(f"--baselines: {error} ({env_id})") from error
     if args.team is not None and model_path is None:

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
-from sb3_maddpg.evaluation.baselines import GreedyStaticController, greedy_placement
 from sb3_maddpg.zoo.registry import make_multiagent_env
 from sb3_maddpg_envs import uav_coverage_v1
+from sb3_maddpg_envs.uav_coverage.baselines import GreedyStaticController, greedy_placement
 from sb3_maddpg_envs.uav_coverage.core import UAVCoverageCore
 from sb3_maddpg_envs.uav_coverage.hazards import (
     crash_drain,

@@ -6,8 +6,8 @@ import pytest
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 from test_env_rules import SCENARIO_A
 
-from sb3_maddpg.evaluation.baselines import fly_to
 from sb3_maddpg_envs import uav_coverage_v0, uav_coverage_v1
+from sb3_maddpg_envs.uav_coverage.baselines import fly_to
 from sb3_maddpg_envs.uav_coverage.core import UAVCoverageCore
 
 V1_RULES = dict(action_mode="cartesian", wall_mode="clip", reward_mode="coverage", fairness_coef=0.5, energy_coef=0.5)

@@ -19,12 +19,12 @@ from sb3_maddpg.common.eval_tensorboard import (
     MAP_SIZE_PX,
     VIDEO_TAG,
     EvalTensorBoardCallback,
-    coverage_map,
     kept_random_states,
 )
 from sb3_maddpg.evaluation.baselines import ModelController
 from sb3_maddpg.zoo.monitor import JointEpisodeMonitor
 from sb3_maddpg_envs import uav_coverage_v1
+from sb3_maddpg_envs.uav_coverage.plotting import coverage_map
 
 KWARGS = dict(obs_size=16, n_uavs=3, max_cycles=10)
 SEED = 3

@@ -7,19 +7,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from sb3_maddpg.evaluation import (
-    GreedyStaticController,
-    RandomController,
-    evaluate_and_report,
-    evaluate_controllers,
-    greedy_placement,
-    plot_training_logs,
-    summarize,
-)
-from sb3_maddpg.evaluation.baselines import assign_targets, fly_to
+from sb3_maddpg.evaluation import RandomController, evaluate_and_report, evaluate_controllers, plot_training_logs, summarize
 from sb3_maddpg.evaluation.evaluate import format_table, worst_decile
 from sb3_maddpg.zoo.registry import make_multiagent_env
 from sb3_maddpg_envs import uav_coverage_v0
+from sb3_maddpg_envs.uav_coverage.baselines import GreedyStaticController, assign_targets, fly_to, greedy_placement
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

@@ -4,8 +4,9 @@ hugging the walls has the better mean team return, the one keeping a margin of 3
 storm task between the greedy placement anywhere and the one keeping out of the storm zone, and on the redesigned
 storm task (on the reset seeds of its 200-episode table, 10 000 on)."""
 
-from sb3_maddpg.evaluation import GreedyStaticController, evaluate_controllers, summarize
+from sb3_maddpg.evaluation import evaluate_controllers, summarize
 from sb3_maddpg.zoo.registry import make_multiagent_env
+from sb3_maddpg_envs.uav_coverage.baselines import GreedyStaticController
 
 N_EPISODES = 40
 

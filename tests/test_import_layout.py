@@ -1,4 +1,7 @@
-"""No module of the library or its envs imports a module that imports it back (directly or through a chain)."""
+"""
+No module of the library or its envs imports a module that imports it back (directly or through a chain), and the
+library imports no task package: a task reaches it through its env's ``task_tools``.
+"""
 
 import ast
 from pathlib import Path
@@ -45,3 +48,37 @@ def test_no_module_imports_one_that_imports_it_back():
     cycles = sorted({tuple(sorted((a, b))) for a in plain for b in graph[a] & plain if a in reachable(b)})
     assert cycles == [], f"import cycles: {cycles}"
     assert len(plain) > 30  # the walk found the library
+
+
+def task_package_imports(path: Path) -> list[str]:
+    """
+    Where a file imports the task package ``sb3_maddpg_envs``: ``import`` and ``from ... import`` statements at the
+    top or inside functions, and ``import_module`` / ``__import__`` calls with the name written out.
+    """
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            names = [node.module or ""] if node.level == 0 else []
+        elif isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", None)) in (
+            "import_module",
+            "__import__",
+        ):
+            names = [arg.value for arg in node.args[:1] if isinstance(arg, ast.Constant) and isinstance(arg.value, str)]
+        else:
+            continue
+        where = f"{path.relative_to(ROOT)}:{node.lineno}"
+        found += [f"{where} {name}" for name in names if name.split(".")[0] == "sb3_maddpg_envs"]
+    return found
+
+
+def test_the_library_reaches_a_task_only_through_its_plug_in_point():
+    # A task offers its baselines and pictures as its env's `task_tools` (sb3_maddpg/evaluation/task_tools.py); the
+    # registry names env constructors by "module:attribute" strings, resolved when an env is made, as Gymnasium's does
+    files = sorted((ROOT / "sb3_maddpg").rglob("*.py"))
+    assert [line for path in files for line in task_package_imports(path)] == []
+    assert len(files) > 30  # the walk found the library
+    # the walk sees an import where there is one
+    assert task_package_imports(ROOT / "tests" / "test_task_tools.py") == []
+    assert task_package_imports(ROOT / "tests" / "test_eval_tensorboard.py") != []

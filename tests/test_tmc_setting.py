@@ -7,14 +7,11 @@ import numpy as np
 import pytest
 
 from sb3_maddpg.__main__ import main
-from sb3_maddpg.evaluation.baselines import (
-    GreedyStepController,
-    greedy_step_scores,
-    make_baselines,
-    step_actions,
-)
+from sb3_maddpg.evaluation.baselines import make_baselines
 from sb3_maddpg.zoo.registry import make_multiagent_env
 from sb3_maddpg_envs import uav_coverage_v0, uav_coverage_v1
+from sb3_maddpg_envs.uav_coverage.baselines import GreedyStepController, greedy_step_scores, step_actions
+from sb3_maddpg_envs.uav_coverage.task_tools import TASK_TOOLS
 from tests.cli_testing import fails_with
 
 EPS = 1e-4
@@ -168,18 +165,18 @@ def test_greedy_step_actions_in_the_cartesian_encoding() -> None:
 
 
 def test_make_baselines_and_bad_values() -> None:
-    assert [c.name for c in make_baselines(None, uav_env=True)] == ["random", "greedy_static"]
-    assert [c.name for c in make_baselines(None, uav_env=False)] == ["random"]
-    assert [c.name for c in make_baselines(["greedy_step", "random", "greedy_step"], uav_env=True)] == [
+    assert [c.name for c in make_baselines(None, TASK_TOOLS)] == ["random", "greedy_static"]
+    assert [c.name for c in make_baselines(None)] == ["random"]
+    assert [c.name for c in make_baselines(["greedy_step", "random", "greedy_step"], TASK_TOOLS)] == [
         "greedy_step",
         "random",
     ]
-    with pytest.raises(ValueError, match="unknown baseline 'greedy'"):
-        make_baselines(["greedy"], uav_env=True)
-    with pytest.raises(ValueError, match="'greedy_step' reads the simulation"):
-        make_baselines(["greedy_step"], uav_env=False)
+    with pytest.raises(ValueError, match="unknown baseline 'greedy'; this env accepts: random, greedy_static, greedy_step"):
+        make_baselines(["greedy"], TASK_TOOLS)
+    with pytest.raises(ValueError, match="unknown baseline 'greedy_step'; this env accepts: random$"):
+        make_baselines(["greedy_step"])
     with pytest.raises(TypeError, match="sequence of names"):
-        make_baselines("random", uav_env=True)
+        make_baselines("random", TASK_TOOLS)
     with pytest.raises(ValueError, match="n_headings must be an integer >= 1, got 0"):
         GreedyStepController(n_headings=0)
     with pytest.raises(ValueError, match="n_headings must be an integer >= 1, got 2.5"):
@@ -194,6 +191,7 @@ def test_evaluate_command_runs_the_chosen_baselines(tmp_path: Path, capsys: pyte
     table = capsys.readouterr().out
     assert table.index("| greedy_step | 1 |") < table.index("| random | 1 |")
     assert "greedy_static" not in table
-    assert "--baselines: unknown baseline 'greedy'; known: random" in fails_with([*argv[:5], "greedy"], capsys)
+    unknown = "--baselines: unknown baseline 'greedy'; this env accepts: random, greedy_static, greedy_step"
+    assert unknown in fails_with([*argv[:5], "greedy"], capsys)
     non_uav = ["evaluate", "--baselines-only", "--env", "simple_spread_v3", "--baselines", "greedy_step"]
-    assert "'greedy_step' reads the simulation of a UAV coverage env" in fails_with(non_uav, capsys)
+    assert "unknown baseline 'greedy_step'; this env accepts: random (simple_spread_v3)" in fails_with(non_uav, capsys)

@@ -13,10 +13,10 @@ import numpy as np
 
 from .core import UAVCoverageCore
 
-__all__ = ["coverage_grid", "save_coverage_heatmap", "save_gif", "save_state_image"]
+__all__ = ["coverage_grid", "coverage_map", "save_coverage_heatmap", "save_gif", "save_state_image"]
 
 
-def _core_of(env_or_core: Any) -> UAVCoverageCore:
+def core_of(env_or_core: Any) -> UAVCoverageCore:
     """The numpy core of a core, a ``UAVCoverageEnv`` or a wrapped env (AEC wrappers, ``parallel_to_aec``)."""
     if isinstance(env_or_core, UAVCoverageCore):
         return env_or_core
@@ -68,7 +68,7 @@ def save_coverage_heatmap(core: UAVCoverageCore, path: str | os.PathLike, title:
     :param path: output file; the format follows the suffix (``.png``, ``.pdf``, ...)
     :param title: figure title (default: step and coverage metrics)
     """
-    core = _core_of(core)
+    core = core_of(core)
     plt = _pyplot()
     size = core.map_size
     fig, ax = plt.subplots(figsize=(5.2, 4.5))
@@ -86,6 +86,44 @@ def save_coverage_heatmap(core: UAVCoverageCore, path: str | os.PathLike, title:
     plt.close(fig)
 
 
+def coverage_map(env_or_core: Any, size_px: tuple[int, int] = (416, 360)) -> np.ndarray:
+    """
+    The coverage heat map (c_t(k) over the map, as :func:`save_coverage_heatmap` draws it) with the UAVs' positions
+    (grey: no longer active) and their communication links, as an RGB array.
+
+    Drawn on a figure of its own with Matplotlib's Agg canvas: no display, and pyplot's global state is left alone.
+
+    :param env_or_core: the simulation, or an env built on one
+    :param size_px: (width, height) of the image in pixels
+    :return: (height, width, 3) uint8 image
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    core = core_of(env_or_core)
+    dpi = 80
+    figure = Figure(figsize=(size_px[0] / dpi, size_px[1] / dpi), dpi=dpi)
+    canvas = FigureCanvasAgg(figure)
+    ax = figure.add_subplot()
+    size = core.map_size
+    mesh = ax.imshow(coverage_grid(core), origin="lower", extent=(0, size, 0, size), cmap="viridis", vmin=0.0, vmax=1.0)
+    figure.colorbar(mesh, ax=ax, label="coverage score $c_t(k)$")
+    positions = np.asarray(core.positions)
+    for i, j in core.links():
+        ax.plot(positions[[i, j], 0], positions[[i, j], 1], color="white", linewidth=1.2, alpha=0.8)
+    active = np.asarray(core.active, dtype=bool)
+    ax.scatter(*positions[active].T, c="red", marker="^", s=40, edgecolors="white", label="UAV", zorder=3)
+    if not active.all():
+        ax.scatter(*positions[~active].T, c="grey", marker="^", s=40, edgecolors="white", label="inactive", zorder=3)
+    ax.set_xlim(0, size)
+    ax.set_ylim(0, size)
+    ax.set_title(f"t={core.t}  c={core.coverage:.3f}  f={core.fairness:.3f}", fontsize="medium")
+    ax.legend(loc="upper right", fontsize="small")
+    figure.tight_layout()
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+
 def save_state_image(env_or_core: Any, path: str | os.PathLike, scale: int = 4) -> None:
     """
     Write the global state image (channels PoIs, UAVs, coverage as red, green, blue) as a PNG.
@@ -96,7 +134,7 @@ def save_state_image(env_or_core: Any, path: str | os.PathLike, scale: int = 4) 
     """
     from PIL import Image
 
-    core = _core_of(env_or_core)
+    core = core_of(env_or_core)
     rgb = np.transpose(core.state(), (1, 2, 0))
     if scale > 1:
         rgb = np.repeat(np.repeat(rgb, scale, axis=0), scale, axis=1)

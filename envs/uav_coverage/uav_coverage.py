@@ -18,6 +18,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from pettingzoo.utils.env import AECEnv
 
 from .core import UAVCoverageCore
+from .task_tools import TASK_TOOLS
 from .validation import MAX_STEPS, check_int
 
 __all__ = ["UAVCoverageEnv", "env", "parallel_env", "raw_env"]
@@ -58,6 +59,9 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
         "episode_metrics": ("coverage", "fairness", "energy", "energy_efficiency", "wall_hits", "disconnections"),
         "per_agent_episode_metrics": ("wall_hits", "disconnections"),
     }
+    # What sb3_maddpg's evaluation may ask of the task beyond the PettingZoo API (its plug-in point): the greedy
+    # baselines, the random start of evaluation episodes, the heat map and the TensorBoard pictures
+    task_tools = TASK_TOOLS
 
     def __init__(self, render_mode: str | None = None, name: str = "uav_coverage_v0", **core_kwargs: Any) -> None:
         EzPickle.__init__(self, render_mode=render_mode, name=name, **core_kwargs)

@@ -1,7 +1,8 @@
 """
 What an evaluation adds to TensorBoard beside SB3's ``eval/mean_reward``: the episode-end metrics of the evaluation's
-episodes, and, on a task that can draw itself (the UAV coverage envs, whose env has a simulation ``core``), the
-coverage heat map with the team's positions and links and, on request, a short video of one evaluation episode.
+episodes, and, on a task that can draw itself (whose env's task tools ``can_draw``: on the UAV coverage envs the
+coverage heat map with the team's positions and links), a picture of one evaluation episode's end and, on request, a
+short video of it.
 
 Everything here runs after an evaluation only (``EvalCallback(callback_after_eval=...)``), never on a training step.
 The drawn episode is played on an env of its own, from the same seed at every evaluation (the pictures of successive
@@ -28,10 +29,11 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStac
 from sb3_maddpg.common.callbacks import declared_episode_metrics
 from sb3_maddpg.common.hparams import tensorboard_formats, write_to_tensorboard
 from sb3_maddpg.common.validation import check_int
+from sb3_maddpg.evaluation.task_tools import episode_limit, task_tools
 
 IMAGE_TAG = "eval/coverage_map"
 VIDEO_TAG = "eval/episode"
-# The heat map's size in pixels (width, height): small enough that each evaluation adds tens of kilobytes
+# The picture's size in pixels (width, height): small enough that each evaluation adds tens of kilobytes
 MAP_SIZE_PX = (416, 360)
 
 
@@ -48,45 +50,6 @@ def kept_random_states() -> Iterator[None]:
         th.set_rng_state(torch_state)
         if cuda_states is not None:
             th.cuda.set_rng_state_all(cuda_states)
-
-
-def coverage_map(core: Any, size_px: tuple[int, int] = MAP_SIZE_PX) -> np.ndarray:
-    """
-    The coverage heat map (c_t(k) over the map, as ``sb3_maddpg_envs.uav_coverage.plotting.save_coverage_heatmap``
-    draws it) with the UAVs' positions (grey: no longer active) and their communication links, as an RGB array.
-
-    Drawn on a figure of its own with Matplotlib's Agg canvas: no display, and pyplot's global state is left alone.
-
-    :param core: the UAV coverage simulation (``env.core``)
-    :param size_px: (width, height) of the image in pixels
-    :return: (height, width, 3) uint8 image
-    """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    from sb3_maddpg_envs.uav_coverage.plotting import coverage_grid
-
-    dpi = 80
-    figure = Figure(figsize=(size_px[0] / dpi, size_px[1] / dpi), dpi=dpi)
-    canvas = FigureCanvasAgg(figure)
-    ax = figure.add_subplot()
-    size = core.map_size
-    mesh = ax.imshow(coverage_grid(core), origin="lower", extent=(0, size, 0, size), cmap="viridis", vmin=0.0, vmax=1.0)
-    figure.colorbar(mesh, ax=ax, label="coverage score $c_t(k)$")
-    positions = np.asarray(core.positions)
-    for i, j in core.links():
-        ax.plot(positions[[i, j], 0], positions[[i, j], 1], color="white", linewidth=1.2, alpha=0.8)
-    active = np.asarray(core.active, dtype=bool)
-    ax.scatter(*positions[active].T, c="red", marker="^", s=40, edgecolors="white", label="UAV", zorder=3)
-    if not active.all():
-        ax.scatter(*positions[~active].T, c="grey", marker="^", s=40, edgecolors="white", label="inactive", zorder=3)
-    ax.set_xlim(0, size)
-    ax.set_ylim(0, size)
-    ax.set_title(f"t={core.t}  c={core.coverage:.3f}  f={core.fairness:.3f}", fontsize="medium")
-    ax.legend(loc="upper right", fontsize="small")
-    figure.tight_layout()
-    canvas.draw()
-    return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
 
 def video_encoder() -> str:
@@ -153,8 +116,9 @@ class EvalTensorBoardCallback(BaseCallback):
 
     - ``eval/<metric>``: the mean episode-end coverage, fairness, energy, ... of the evaluation's episodes, read from
       the ``JointEpisodeMonitor`` of the evaluation env, where the env reports them;
-    - ``eval/coverage_map`` (with ``images``): the coverage heat map at the end of one deterministic episode, with the
-      team's positions and links, on envs with a simulation ``core`` (the UAV coverage envs);
+    - ``eval/coverage_map`` (with ``images``): the task's picture (``TaskTools.draw_map``) at the end of one
+      deterministic episode, on a task that can draw itself (on the UAV coverage envs the coverage heat map with the
+      team's positions and links);
     - ``eval/episode`` (with ``video``): that episode as an animated GIF (SB3's ``Video`` where moviepy can encode it,
       else the same GIF encoded with Pillow).
 
@@ -216,7 +180,7 @@ class EvalTensorBoardCallback(BaseCallback):
             return
         with kept_random_states():
             env = self.make_env()
-        if getattr(env, "core", None) is None:
+        if not task_tools(env).can_draw:
             # A task that cannot draw itself (e.g. MPE): metrics and hyperparameters only
             env.close()
             return
@@ -263,25 +227,27 @@ class EvalTensorBoardCallback(BaseCallback):
     def _pictures(self) -> dict[str, Any]:
         """Play one deterministic episode on the callback's env and draw it."""
         from sb3_maddpg.evaluation.baselines import ModelController
-        from sb3_maddpg_envs.uav_coverage.rendering import render_frame
 
-        env, core = self._env, self._env.core
+        env = self._env
+        tools = task_tools(env)
         controller = ModelController(self.model, deterministic=bool(getattr(self.parent, "deterministic", True)))
-        every = max(1, math.ceil(int(core.max_cycles) / (self.video_frames - 1)))
+        # every k-th step, so that the video keeps at most video_frames frames (every step where the env does not say
+        # how long an episode lasts)
+        every = max(1, math.ceil(int(episode_limit(env) or 1) / (self.video_frames - 1)))
         frames: list[np.ndarray] = []
         observations, _ = env.reset(seed=self.seed)
         step = 0
         if self.video:
-            frames.append(render_frame(core, size=self.video_size))
+            frames.append(tools.draw_frame(env, self.video_size))
         while env.agents:
             live = {agent: observation for agent, observation in observations.items() if agent in env.agents}
             observations, *_ = env.step(controller.act(live, env))
             step += 1
             if self.video and (step % every == 0 or not env.agents):
-                frames.append(render_frame(core, size=self.video_size))
+                frames.append(tools.draw_frame(env, self.video_size))
         pictures: dict[str, Any] = {}
         if self.images:
-            pictures[IMAGE_TAG] = Image(coverage_map(core), "HWC")
+            pictures[IMAGE_TAG] = Image(tools.draw_map(env, MAP_SIZE_PX), "HWC")
         if self.video:
             pictures[VIDEO_TAG] = np.stack(frames)
         return pictures

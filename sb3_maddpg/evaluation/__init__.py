@@ -1,12 +1,9 @@
-"""Evaluation of trained models and baselines on multi-agent envs, with the report's figures on the UAV coverage env."""
+"""
+Evaluation of trained models and baselines on multi-agent envs; a task adds its own baselines and figures through
+its env's ``task_tools`` (:class:`TaskTools`).
+"""
 
-from sb3_maddpg.evaluation.baselines import (
-    Controller,
-    GreedyStaticController,
-    ModelController,
-    RandomController,
-    greedy_placement,
-)
+from sb3_maddpg.evaluation.baselines import Controller, ModelController, RandomController, TeamController, make_baselines
 from sb3_maddpg.evaluation.evaluate import (
     METRICS,
     evaluate_controllers,
@@ -25,18 +22,20 @@ from sb3_maddpg.evaluation.figures import (
     save_episode_figures,
 )
 from sb3_maddpg.evaluation.report import evaluate_and_report, find_run_config
+from sb3_maddpg.evaluation.task_tools import TaskTools, task_tools
 
 __all__ = [
     "METRICS",
     "Controller",
-    "GreedyStaticController",
     "ModelController",
     "RandomController",
+    "TaskTools",
+    "TeamController",
     "evaluate_and_report",
     "evaluate_controllers",
     "find_run_config",
     "format_table",
-    "greedy_placement",
+    "make_baselines",
     "plot_fairness_vs_coverage",
     "plot_fairness_vs_efficiency",
     "plot_metrics_vs_episode",
@@ -45,6 +44,7 @@ __all__ = [
     "run_episode",
     "save_episode_figures",
     "summarize",
+    "task_tools",
     "worst_decile",
     "write_results",
 ]

@@ -53,13 +53,14 @@ class EpisodeRecord:
     :param frames: rendered RGB frames (every ``frame_every`` steps and the last)
     :param state_images: step -> global state image (3, S, S) uint8 at that step (0 is after reset)
     :param render_frames: step -> rendered RGB frame at that step
-    :param core: the simulation at the end of the episode (for the coverage heat map)
+    :param env: the env it was played on, for the task's own figures (``TaskTools.episode_figures``), drawn from the
+        env as it is when the figures are written: after the recorded controller's last episode
     """
 
     frames: list[np.ndarray] = field(default_factory=list)
     state_images: dict[int, np.ndarray] = field(default_factory=dict)
     render_frames: dict[int, np.ndarray] = field(default_factory=dict)
-    core: Any = None
+    env: Any = None
 
 
 def run_episode(
@@ -76,7 +77,7 @@ def run_episode(
     :param env: a PettingZoo ParallelEnv (with ``render_mode="rgb_array"`` to record frames)
     :param controller: what acts
     :param seed: the episode's seed (start positions with ``start="random"``)
-    :param record: if given, filled with frames, state images and the final simulation
+    :param record: if given, filled with frames, state images and the env
     :param state_steps: steps at which to keep the state image and the rendered frame (0 = after reset)
     :param frame_every: keep one rendered frame every this many steps
     :return: the episode-end metrics (``coverage``, ``fairness``, ``energy``, ``energy_efficiency``) and the team's
@@ -115,7 +116,7 @@ def run_episode(
         step += 1
         keep(step, last=not env.agents)
     if record is not None:
-        record.core = getattr(env, "core", None)
+        record.env = env
 
     last_infos = list(infos.values()) or [{}]
     metrics = {key: float(last_infos[0][key]) for key in METRICS if key in last_infos[0]}

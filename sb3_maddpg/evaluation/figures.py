@@ -1,6 +1,7 @@
 """
 The report's figures: fairness against coverage, fairness against energy efficiency, each metric against episode
-(from evaluation results or from a training run's logs), state images, the coverage heat map and an episode GIF.
+(from evaluation results or from a training run's logs), state images, an episode GIF and the task's own figures
+(on the UAV envs the coverage heat map).
 
 Matplotlib is imported with the Agg backend only when a figure is drawn, so no display is needed.
 """
@@ -17,6 +18,7 @@ import numpy as np
 
 from sb3_maddpg.common.atomic import atomic_path
 from sb3_maddpg.evaluation.evaluate import METRICS, EpisodeRecord
+from sb3_maddpg.evaluation.task_tools import task_tools
 
 LABELS: dict[str, str] = {
     "coverage": "coverage $c_T$",
@@ -182,8 +184,8 @@ def plot_returns_vs_episode(
 
 def save_episode_figures(record: EpisodeRecord, out_dir: str | os.PathLike, prefix: str = "", fps: int = 10) -> list[Path]:
     """
-    The figures of one recorded episode: state images and rendered frames at the chosen steps, the coverage heat
-    map at the end, and a GIF of the episode.
+    The figures of one recorded episode: state images and rendered frames at the chosen steps, the task's own figures
+    (``TaskTools.episode_figures``: on the UAV envs the coverage heat map at the end), and a GIF of the episode.
 
     :param record: the recorded episode
     :param out_dir: output folder (created)
@@ -192,8 +194,6 @@ def save_episode_figures(record: EpisodeRecord, out_dir: str | os.PathLike, pref
     :return: the paths written
     """
     from PIL import Image
-
-    from sb3_maddpg_envs.uav_coverage.plotting import save_coverage_heatmap, save_gif
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -207,15 +207,17 @@ def save_episode_figures(record: EpisodeRecord, out_dir: str | os.PathLike, pref
         with atomic_path(path) as temporary:
             Image.fromarray(np.asarray(frame, dtype=np.uint8)).save(temporary)
         written.append(path)
-    if record.core is not None:
-        path = out / f"{prefix}coverage_heatmap.png"
-        with atomic_path(path) as temporary:
-            save_coverage_heatmap(record.core, temporary)
-        written.append(path)
+    if record.env is not None:
+        for name, write in task_tools(record.env).episode_figures(record.env).items():
+            path = out / f"{prefix}{name}"
+            with atomic_path(path) as temporary:
+                write(temporary)
+            written.append(path)
     if record.frames:
         path = out / f"{prefix}episode.gif"
         with atomic_path(path) as temporary:
-            save_gif(record.frames, temporary, fps=fps)
+            images = [Image.fromarray(np.asarray(frame, dtype=np.uint8)) for frame in record.frames]
+            images[0].save(temporary, save_all=True, append_images=images[1:], duration=max(1, round(1000 / fps)), loop=0)
         written.append(path)
     return written
 

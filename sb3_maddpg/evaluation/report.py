@@ -13,7 +13,7 @@ import yaml
 from sb3_maddpg.common.agent_spaces import read_agent_spaces
 from sb3_maddpg.common.atomic import check_writable_folder
 from sb3_maddpg.evaluation.baselines import Controller, ModelController, RandomController, TeamController, make_baselines
-from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
+from sb3_maddpg.evaluation.evaluate import METRICS, evaluate_controllers, format_table, summarize, write_results
 from sb3_maddpg.evaluation.figures import (
     plot_fairness_vs_coverage,
     plot_fairness_vs_efficiency,
@@ -23,6 +23,7 @@ from sb3_maddpg.evaluation.figures import (
     series_from_results,
 )
 from sb3_maddpg.evaluation.progress import episode_progress
+from sb3_maddpg.evaluation.task_tools import TaskTools, episode_limit, task_tools
 
 DEFAULT_ENV_ID = "uav_coverage_v0"
 
@@ -168,15 +169,6 @@ def saved_algorithm(policy_class: Any) -> type:
     return algorithm_of_policy(policy_class) or algorithm_class("maddpg")
 
 
-def episode_limit(env: Any) -> int | None:
-    """
-    :param env: a multi-agent env (PettingZoo ParallelEnv)
-    :return: the most steps an episode has (the UAV envs' and MPE's ``max_cycles``), or None if the env does not say
-    """
-    core = getattr(env, "core", None)
-    return int(core.max_cycles) if core is not None else getattr(env.unwrapped, "max_cycles", None)
-
-
 def check_state_steps(state_steps: Sequence[int] | None, max_cycles: int | None) -> None:
     """
     Refuse steps of the recorded episode that no episode has (they would silently give no image).
@@ -238,15 +230,15 @@ class EvaluationEnv:
     The env an evaluation plays, as ``evaluation_env`` works it out.
 
     :param env_id: the registered env
-    :param kwargs: its arguments (the run's, those given over them, a random start on the UAV envs)
-    :param is_uav_env: a UAV coverage env (it has a simulation ``core``: the UAV metrics, baselines and figures)
+    :param kwargs: its arguments (the run's, the task's ``evaluation_kwargs`` over them, those given over both)
+    :param tools: what its task offers beyond the PettingZoo API (:func:`~sb3_maddpg.evaluation.task_tools.task_tools`)
     :param render_mode: ``"rgb_array"`` where the env renders to arrays, else None
     :param max_cycles: the most steps an episode has, or None if the env does not say
     """
 
     env_id: str
     kwargs: dict[str, Any]
-    is_uav_env: bool
+    tools: TaskTools
     render_mode: str | None
     max_cycles: int | None
 
@@ -256,8 +248,9 @@ def evaluation_env(
 ) -> EvaluationEnv:
     """
     The env that ``evaluate`` and ``select-checkpoint`` play: the model's run's env and arguments (``find_run_config``),
-    ``env_id`` and ``env_kwargs`` over them, and on the UAV envs a new start at random places every episode unless
-    ``env_kwargs`` says otherwise. One env is made to find out what it is.
+    ``env_id`` and ``env_kwargs`` over them, and between the two what the task asks of an evaluation
+    (``TaskTools.evaluation_kwargs``: on the UAV envs a new start at random places every episode). One env is made to
+    find out what it is.
 
     :param model_path: the model whose run gives the env (None: ``env_id``, else ``uav_coverage_v0``)
     :param env_id: the env; by default the run's
@@ -274,15 +267,15 @@ def evaluation_env(
     kwargs.pop("render_mode", None)
     probe = make_multiagent_env(env_id, **kwargs)
     try:
-        is_uav_env = getattr(probe, "core", None) is not None
+        tools = task_tools(probe)
         render_mode = "rgb_array" if "rgb_array" in probe.metadata.get("render_modes", []) else None
         max_cycles = episode_limit(probe)
     finally:
         probe.close()
-    if is_uav_env:
-        kwargs = {**run_env_kwargs, "start": "random", **(env_kwargs or {})}
+    if tools.evaluation_kwargs:
+        kwargs = {**run_env_kwargs, **tools.evaluation_kwargs, **(env_kwargs or {})}
         kwargs.pop("render_mode", None)
-    return EvaluationEnv(env_id, kwargs, is_uav_env, render_mode, max_cycles)
+    return EvaluationEnv(env_id, kwargs, tools, render_mode, max_cycles)
 
 
 def _load_controller(model_path: str | os.PathLike, env_id: str, env_kwargs: dict[str, Any], device: str) -> ModelController:
@@ -317,23 +310,26 @@ def evaluate_and_report(
     ``results.csv``, ``results.json``, ``episodes.csv``, ``results.md`` and the figures into ``out_dir``.
 
     Any registered multi-agent env: team return, each agent's return and the episode length, against random actions
-    (``returns_vs_episode.png``, and the GIF where the env renders to arrays). On the UAV envs also, with
-    ``start="random"``: c_T, f_T, e_T, eta_T, the greedy static placement and the report's figures.
+    (``returns_vs_episode.png``, and the GIF where the env renders to arrays). A task adds what its env's tools offer
+    (:mod:`~sb3_maddpg.evaluation.task_tools`): on the UAV envs, with ``start="random"``, the greedy baselines, the
+    state images and the coverage heat map; and where the env reports c_T, f_T, e_T, eta_T, the report's figures.
 
     :param out_dir: output folder
     :param n_episodes: episodes per method
     :param model_path: a saved MADDPG model; None to evaluate the baselines only
     :param env_id: the env id; by default the model's run's, else ``uav_coverage_v0``
-    :param env_kwargs: env arguments over the model's training ones (``start`` is ``"random"`` unless given here)
+    :param env_kwargs: env arguments over the model's training ones and the task's ``evaluation_kwargs`` (on the UAV
+        envs ``start`` is ``"random"`` unless given here)
     :param seed: seed of the first episode (episode e uses seed + e for every method)
     :param device: device of the model
-    :param state_steps: steps of the recorded episode whose state images are written (default: start, middle, end)
+    :param state_steps: steps of the recorded episode whose state images are written (default: start, middle, end
+        where the task's state is an image, else none)
     :param gif: whether to write the GIF of the recorded episode
     :param frame_every: keep one GIF frame every this many steps (default: at most about 100 frames)
     :param verbose: 0 silent, 1 table, 2 one line per episode
-    :param baselines: names of the baselines to run beside the model (``random``, ``greedy_static``,
-        ``greedy_step``; the last two on the UAV envs only); None for random actions and, on the UAV envs, the
-        greedy static placement
+    :param baselines: names of the baselines to run beside the model: ``random`` and the task's own (on the UAV envs
+        ``greedy_static`` and ``greedy_step``); None for random actions and the task's default ones (on the UAV envs
+        the greedy static placement)
     :param team: competing teams: the model acts for this team's agents only (``adversary`` for ``adversary_0``,
         ``adversary_1``, ...), ``opponent`` for the others; and, for comparison, random actions for the team against
         the same opponent. None: the model acts for every agent
@@ -368,15 +364,17 @@ def evaluate_and_report(
             TeamController(team, own, rival),
             TeamController(team, RandomController(), rival, name=f"random ({team}) vs {rival.name}"),
         ]
-    controllers.extend(make_baselines(baselines, uav_env=target.is_uav_env))
+    controllers.extend(make_baselines(baselines, target.tools))
     if not controllers:
         raise ValueError("nothing to evaluate: give a model or at least one baseline")
     names = [controller.name for controller in controllers]
-    # The recorded episode: the model's, else the static placement's (the report's figures), else the first baseline's
-    record_name = names[0] if model_path is not None or "greedy_static" not in names else "greedy_static"
+    # The recorded episode: the model's, else that of the task's first default baseline run (on the UAV envs the
+    # static placement's, the report's figures), else the first baseline's
+    task_defaults = [name for name in target.tools.default_baselines if name in names]
+    record_name = names[0] if model_path is not None or not task_defaults else task_defaults[0]
 
     if state_steps is None:
-        state_steps = sorted({0, max_cycles // 2, max_cycles}) if target.is_uav_env else []
+        state_steps = sorted({0, max_cycles // 2, max_cycles}) if target.tools.state_images else []
     if frame_every is None:
         frame_every = max(1, (max_cycles or 100) // 100)
 
@@ -412,7 +410,8 @@ def evaluate_and_report(
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     files["returns_vs_episode.png"] = plot_returns_vs_episode(series, figures / "returns_vs_episode.png")
-    if target.is_uav_env:
+    if all(metric in values for values in series.values() for metric in METRICS):
+        # a task that reports the report's metrics (the UAV envs) gets the report's figures
         files["fairness_vs_coverage.png"] = plot_fairness_vs_coverage(series, figures / "fairness_vs_coverage.png")
         files["fairness_vs_energy_efficiency.png"] = plot_fairness_vs_efficiency(
             series, figures / "fairness_vs_energy_efficiency.png"

@@ -51,10 +51,8 @@ class StubReachEnv(TargetReachEnv):
     task_tools = StubTools()
 
     def __init__(self, render_mode: str | None = None, **kwargs) -> None:
-        super().__init__(**kwargs)  # no rendering: evaluate passes render_mode=None
-
-    def render(self) -> None:
-        return None
+        # no rendering (PettingZoo's render() raises): evaluate passes render_mode=None and must not call it
+        super().__init__(**kwargs)
 
 
 @pytest.fixture

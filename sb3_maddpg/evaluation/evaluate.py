@@ -95,7 +95,8 @@ def run_episode(
         if record is None:
             return
         frame = None
-        if step % frame_every == 0 or last or step in wanted:
+        # Only an env made to render draws: one without a render mode may keep PettingZoo's render(), which raises
+        if getattr(env, "render_mode", None) is not None and (step % frame_every == 0 or last or step in wanted):
             frame = env.render()
         if frame is not None and (step % frame_every == 0 or last):
             record.frames.append(frame)

@@ -63,6 +63,11 @@ def test_the_choice_is_the_best_validation_score_and_its_test_row_is_evaluates(r
     assert scores.index(max(scores)) == rows.index(chosen)  # the first of equal scores
     table = (out / "results.md").read_text()
     assert "| final model |" in table and f"best of 13 checkpoints ({Path(chosen['model']).name})" in table
+    with (out / "results.csv").open() as handle:
+        table_rows = list(csv.DictReader(handle))
+    # the table's rows as evaluate's results.csv has them (what experiments/tmc_table.py reads)
+    assert [row["method"] for row in table_rows] == ["final model", f"best of 13 checkpoints ({Path(chosen['model']).name})"]
+    assert all(f"{float(row['return_mean']):.4f}" in table for row in table_rows)
     printed = capsys.readouterr().out
 
     # evaluate's own row of the chosen model on the same test episodes (seeds 100, 101, 102) is the best-of row

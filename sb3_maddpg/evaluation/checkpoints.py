@@ -122,8 +122,8 @@ def select_checkpoint(
 
 def write_selection(out_dir: str | os.PathLike, selection: dict[str, Any]) -> list[Path]:
     """
-    Write ``checkpoint_scores.csv`` (each model's validation score) and ``results.md`` (the test table) into
-    ``out_dir``.
+    Write ``checkpoint_scores.csv`` (each model's validation score), ``results.md`` (the test table) and
+    ``results.csv`` (its rows, with the columns of ``evaluate``'s ``results.csv``) into ``out_dir``.
 
     :param out_dir: output folder (made if missing)
     :param selection: what ``select_checkpoint`` returned
@@ -142,4 +142,9 @@ def write_selection(out_dir: str | os.PathLike, selection: dict[str, Any]) -> li
         f"{selection['env_id']} {selection['env_kwargs']}: the final model and the best of {len(selection['scores'])} "
         f"models by validation {selection['metric']}, on the same test episodes\n\n{selection['table']}\n"
     )
-    return [scores_file, table_file]
+    rows_file = out / "results.csv"
+    with rows_file.open("w", newline="") as handle:
+        rows = csv.DictWriter(handle, fieldnames=list(selection["summary"][0]))
+        rows.writeheader()
+        rows.writerows(selection["summary"])
+    return [scores_file, table_file, rows_file]

@@ -24,8 +24,16 @@ def declared_episode_metrics(env: object) -> tuple[tuple[str, ...], tuple[str, .
     """
     if env is None:
         return (), ()
+    metadata = None
     get_attr = getattr(env, "get_attr", None)
-    metadata = get_attr("metadata", [0])[0] if callable(get_attr) else getattr(env, "metadata", None)
+    if callable(get_attr):
+        try:
+            metadata = get_attr("metadata", [0])[0]
+        except (AttributeError, NotImplementedError):
+            # a VecEnv that cannot reach its envs' attributes (SuperSuit's own, without make_multiagent_vec_env)
+            metadata = None
+    if not isinstance(metadata, dict):
+        metadata = getattr(env, "metadata", None)
     if not isinstance(metadata, dict):
         return (), ()
     declared = []

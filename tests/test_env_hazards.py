@@ -480,8 +480,10 @@ def test_show_grounded_must_be_a_bool(value):
         ({"crash_ground_steps": 5}, "crash_ground_steps has no effect: nothing crashes a UAV without gusts"),
         ({"crash_energy": 2.0}, "crash_energy has no effect: nothing crashes a UAV without gusts"),
         ({"show_grounded": True}, "show_grounded has no effect: crash_ground_steps is 0"),
+        ({"storm_penalty": 1.0}, "storm_penalty has no effect: storm_prob is 0"),
+        ({"show_storm_zone": True}, "show_storm_zone has no effect: storm_zone is None"),
     ],
-    ids=["storm_zone", "crash_ground_steps", "crash_energy", "show_grounded"],
+    ids=["storm_zone", "crash_ground_steps", "crash_energy", "show_grounded", "storm_penalty", "show_storm_zone"],
 )
 def test_a_setting_without_effect_is_said(settings, message):
     with pytest.warns(UserWarning, match=message):

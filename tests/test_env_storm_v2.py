@@ -169,19 +169,6 @@ def test_bad_values_of_the_new_parameters_are_refused():
         UAVCoverageCore(obs_size=16, show_storm_zone=1)
 
 
-@pytest.mark.parametrize(
-    ("settings", "message"),
-    [
-        ({"storm_penalty": 1.0}, "storm_penalty has no effect: storm_prob is 0"),
-        ({"show_storm_zone": True}, "show_storm_zone has no effect: storm_zone is None"),
-    ],
-    ids=["storm_penalty", "show_storm_zone"],
-)
-def test_a_new_setting_without_effect_is_said(settings, message):
-    with pytest.warns(UserWarning, match=message):
-        UAVCoverageCore(obs_size=16, **settings)
-
-
 def test_the_task_says_nothing():
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -178,7 +178,7 @@ def test_maddpg_adds_the_metrics_callback_once() -> None:
     from stable_baselines3.common.callbacks import CallbackList
 
     from sb3_maddpg import MADDPG, make_multiagent_vec_env
-    from sb3_maddpg.common.off_policy_algorithm import contains_callback
+    from sb3_maddpg.common.callbacks import contains_callback
     from sb3_maddpg_envs import uav_coverage_v0
 
     venv = make_multiagent_vec_env(uav_coverage_v0.parallel_env, n_envs=1, seed=0, env_kwargs=dict(n_uavs=2, obs_size=16))

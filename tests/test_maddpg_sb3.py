@@ -9,7 +9,7 @@ from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.logger import KVWriter, Logger
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
-from sb3_maddpg.common.off_policy_algorithm import JointStepProgressBarCallback
+from sb3_maddpg.common.callbacks import JointStepProgressBarCallback
 
 SMALL = dict(buffer_size=250, learning_starts=100, batch_size=16, policy_kwargs=dict(n_quantiles=5, net_arch=[16, 16]))
 

@@ -62,7 +62,7 @@ def test_save_load_continue_at_an_episode_boundary_equals_the_uninterrupted_run(
 
 def test_without_the_saved_random_states_the_resumed_run_differs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The exactness above comes from the saved states: reseeding from the saved seed (SB3's load) is not enough."""
-    import sb3_maddpg.common.off_policy_algorithm as base_module
+    import sb3_maddpg.common.saving as saving_module
 
     uninterrupted = tiny_model(tiny_env(), train_freq=4)
     uninterrupted.learn(200)
@@ -70,7 +70,7 @@ def test_without_the_saved_random_states_the_resumed_run_differs(tmp_path: Path,
     first.learn(100)
     first.save(tmp_path / "model.zip")
     first.save_replay_buffer(tmp_path / "buffer.pkl")
-    monkeypatch.setattr(base_module, "restore_random_states", lambda model, states: None)
+    monkeypatch.setattr(saving_module, "restore_random_states", lambda model, states: None)
     resumed = MADDPG.load(tmp_path / "model.zip", env=tiny_env(), device="cpu")
     resumed.load_replay_buffer(tmp_path / "buffer.pkl")
     resumed.learn(100, reset_num_timesteps=False)

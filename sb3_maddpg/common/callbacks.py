@@ -3,7 +3,7 @@
 from collections.abc import Iterable, Sequence
 
 import numpy as np
-from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ProgressBarCallback
 
 # The metadata keys by which an env declares its episode-end metrics (``declared_episode_metrics``)
 EPISODE_METRICS_KEY = "episode_metrics"
@@ -211,3 +211,33 @@ def _find_n_agents(model: object, env: object) -> int:
         if isinstance(value, (int, np.integer)) and value > 0:
             return int(value)
     return 1
+
+
+def contains_callback(callback: BaseCallback, callback_class: type[BaseCallback]) -> bool:
+    """Whether ``callback`` is, or holds in a (nested) ``CallbackList``, an instance of ``callback_class``."""
+    if isinstance(callback, callback_class):
+        return True
+    return isinstance(callback, CallbackList) and any(contains_callback(c, callback_class) for c in callback.callbacks)
+
+
+class JointStepProgressBarCallback(ProgressBarCallback):
+    """
+    SB3's progress bar counting the team's timesteps: one VecEnv step advances it by ``n_copies`` (one timestep per
+    joint step of each environment copy), not by the number of VecEnv rows.
+    """
+
+    def _on_step(self) -> bool:
+        self.pbar.update(self.model.n_copies)  # type: ignore[attr-defined]
+        return True
+
+
+def count_joint_steps(callback: BaseCallback) -> BaseCallback:
+    """
+    The callback tree with each of SB3's plain ``ProgressBarCallback`` replaced by a joint-step one, in the lists
+    themselves: RL Zoo closes ``self.callbacks[0]``, its progress bar, after ``learn``.
+    """
+    if type(callback) is ProgressBarCallback:
+        return JointStepProgressBarCallback()
+    if isinstance(callback, CallbackList):
+        callback.callbacks[:] = [count_joint_steps(child) for child in callback.callbacks]
+    return callback

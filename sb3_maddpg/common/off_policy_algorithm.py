@@ -1,137 +1,59 @@
 """The base of the multi-agent off-policy algorithms: SB3's ``OffPolicyAlgorithm`` for a team on one VecEnv.
 
-What every multi-agent off-policy algorithm of this library needs and SB3 does not do lives here, so that an
-algorithm file (``maddpg/maddpg.py``, ``matd3/matd3.py``) holds only its arguments, its networks, its losses and
-``train``, as SB3's ``td3.py`` does:
+What every multi-agent off-policy algorithm of this library needs and SB3 does not do lives here and in the two
+mixins of its bases, so that an algorithm file (``maddpg/maddpg.py``, ``matd3/matd3.py``) holds only its arguments,
+its networks, its losses and ``train``, as SB3's ``td3.py`` does:
 
-- the team: the number of agents and their names, read from the VecEnv of ``make_multiagent_vec_env`` (one row per
-  agent and copy, row = copy * n_agents + agent), and the refusal of another team in ``predict``, ``set_env`` and
-  ``load(env=...)``;
-- the timestep: one joint step of one environment copy, so the rollout loop, the episode count and the progress bar
-  count copies, not VecEnv rows;
-- the joint replay buffer (host memory, or a torch device with ``replay_buffer_kwargs=dict(storage_device=...)``),
-  its saving and loading, laid out again for another number of copies;
-- atomic saves that carry the random states, so that a resumed run continues exactly.
+- the team (``sb3_maddpg.common.team``): the number of agents and their names, read from the VecEnv of
+  ``make_multiagent_vec_env`` (one row per agent and copy, row = copy * n_agents + agent), and the refusal of another
+  team in ``predict``, ``set_env`` and ``load(env=...)``;
+- the timestep (here): one joint step of one environment copy, so the rollout loop, the episode count and the
+  progress bar count copies, not VecEnv rows;
+- the joint replay buffer (here: host memory, or a torch device with ``replay_buffer_kwargs=dict(storage_device=...)``),
+  its saving and loading, laid out again for another number of copies (``sb3_maddpg.common.saving``);
+- atomic saves that carry the random states, so that a resumed run continues exactly (``sb3_maddpg.common.saving``).
 
 Where it overrides SB3's own loop (``collect_rollouts``, ``_sample_action``, ``_init_callback``), the code follows
 stable-baselines3 2.9's ``OffPolicyAlgorithm`` and ``BaseAlgorithm`` line for line apart from what is named in each
 docstring; compare with those methods when upgrading SB3.
 """
 
-import io
-import os
-import pathlib
-import pickle
 import warnings
-from collections.abc import Iterable
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.buffers import ReplayBuffer
-from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ConvertCallback, ProgressBarCallback
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ConvertCallback
 from stable_baselines3.common.noise import ActionNoise, VectorizedActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.save_util import open_path
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, RolloutReturn, Schedule, TrainFreq, TrainFrequencyUnit
 from stable_baselines3.common.utils import should_collect_more_steps
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_maddpg.common.actions import SUPPORTED_ACTION_SPACES, action_width, is_discrete
+from sb3_maddpg.common.actions import SUPPORTED_ACTION_SPACES, is_discrete
 from sb3_maddpg.common.agent_spaces import AgentSpaces
-from sb3_maddpg.common.atomic import atomic_save
 from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
-from sb3_maddpg.common.callbacks import EpisodeMetricsCallback
+from sb3_maddpg.common.callbacks import (
+    EpisodeMetricsCallback,
+    JointStepProgressBarCallback,
+    contains_callback,
+    count_joint_steps,
+)
 from sb3_maddpg.common.denormals import flushed_denormals
 from sb3_maddpg.common.device_buffer import DeviceReplayBuffer, resolve_storage_device
 from sb3_maddpg.common.evaluation import evaluate_joint_episodes
-from sb3_maddpg.common.model_files import READ_ERRORS, read_maddpg_data, restricted_loads
 from sb3_maddpg.common.noise import DecayingGaussianNoise, RowBatchedActionNoise, set_noise_timestep
-from sb3_maddpg.common.random_state import capture_random_states, restore_random_states
+from sb3_maddpg.common.saving import SavedMultiAgentModel
+from sb3_maddpg.common.team import MultiAgentTeam, default_agent_names, first_non_finite
 from sb3_maddpg.common.validation import check_int, check_off_policy_arguments
-from sb3_maddpg.common.vec_env import is_agent_dict, rows_from_agent_dict
 
 SelfMultiAgentOffPolicyAlgorithm = TypeVar("SelfMultiAgentOffPolicyAlgorithm", bound="MultiAgentOffPolicyAlgorithm")
 
 
-def default_agent_names(n_agents: int) -> list[str]:
-    """The names of a team whose env does not name its agents: ``agent_0``, ``agent_1``, ..."""
-    return [f"agent_{i}" for i in range(n_agents)]
-
-
-def _describe_team(names: list[str]) -> str:
-    shown = ", ".join(names) if len(names) <= 8 else f"{', '.join(names[:3])}, ..., {names[-1]}"
-    return f"{len(names)} agent{'s' if len(names) != 1 else ''} ({shown})"
-
-
-def _first_non_finite(values: np.ndarray) -> str:
-    """The first NaN or infinite value of an array and its index, for messages."""
-    if values.ndim == 0:
-        return str(values)
-    index = np.unravel_index(int(np.flatnonzero(~np.isfinite(values))[0]), values.shape)
-    return f"{values[index]} at index {tuple(int(i) for i in index)}"
-
-
-def algorithm_of_policy(policy_class: Any) -> type["MultiAgentOffPolicyAlgorithm"] | None:
-    """
-    The algorithm of this library that saved a model, told by its saved policy class: the algorithm whose
-    ``MlpPolicy`` is the most derived base of that class (``MATD3`` for MATD3's twin-critic policies, ``MADDPG`` for
-    MADDPG's). An algorithm is known once its module is imported, which unpickling its policy class does (the policy
-    module's package imports the algorithm).
-
-    :param policy_class: the model's saved ``policy_class``
-    :return: the algorithm class, or None for a class that is no algorithm's policy
-    """
-    if not isinstance(policy_class, type):
-        return None
-    candidates: list[tuple[type[MultiAgentOffPolicyAlgorithm], type]] = []
-    stack: list[type[MultiAgentOffPolicyAlgorithm]] = [MultiAgentOffPolicyAlgorithm]
-    while stack:
-        algorithm = stack.pop()
-        stack.extend(algorithm.__subclasses__())
-        base = algorithm.policy_aliases.get("MlpPolicy")
-        if base is not None and issubclass(policy_class, base):
-            candidates.append((algorithm, base))
-    if not candidates:
-        return None
-    closest = max((base for _, base in candidates), key=lambda base: len(base.__mro__))
-    # the first algorithm with that policy (MATD3, not a subclass of it)
-    return min((algorithm for algorithm, base in candidates if base is closest), key=lambda algorithm: len(algorithm.__mro__))
-
-
-def contains_callback(callback: BaseCallback, callback_class: type[BaseCallback]) -> bool:
-    """Whether ``callback`` is, or holds in a (nested) ``CallbackList``, an instance of ``callback_class``."""
-    if isinstance(callback, callback_class):
-        return True
-    return isinstance(callback, CallbackList) and any(contains_callback(c, callback_class) for c in callback.callbacks)
-
-
-class JointStepProgressBarCallback(ProgressBarCallback):
-    """
-    SB3's progress bar counting the team's timesteps: one VecEnv step advances it by ``n_copies`` (one timestep per
-    joint step of each environment copy), not by the number of VecEnv rows.
-    """
-
-    def _on_step(self) -> bool:
-        self.pbar.update(self.model.n_copies)  # type: ignore[attr-defined]
-        return True
-
-
-def _count_joint_steps(callback: BaseCallback) -> BaseCallback:
-    """
-    The callback tree with each of SB3's plain ``ProgressBarCallback`` replaced by a joint-step one, in the lists
-    themselves: RL Zoo closes ``self.callbacks[0]``, its progress bar, after ``learn``.
-    """
-    if type(callback) is ProgressBarCallback:
-        return JointStepProgressBarCallback()
-    if isinstance(callback, CallbackList):
-        callback.callbacks[:] = [_count_joint_steps(child) for child in callback.callbacks]
-    return callback
-
-
-class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
+class MultiAgentOffPolicyAlgorithm(MultiAgentTeam, SavedMultiAgentModel, OffPolicyAlgorithm):
     """
     SB3's off-policy algorithm for a team of N agents acting in one VecEnv with one row per agent and copy,
     row = copy * n_agents + agent (see ``make_multiagent_vec_env``); row r is acted on by the policy's agent
@@ -176,9 +98,6 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {}
-    #: class parameters that every saved model of the algorithm has and no SB3 algorithm saves: ``load`` refuses a
-    #: file without one of them with a one-line error (a subclass adds its own)
-    saved_model_keys: ClassVar[tuple[str, ...]] = ("n_agents",)
     replay_buffer: MultiAgentReplayBuffer | None  # type: ignore[assignment]
 
     def __init__(
@@ -271,222 +190,6 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         if self.env is not None:
             self._read_agents(self.env, n_agents)
             self._check_action_noise(action_noise, self.env.num_envs)
-
-    # ------------------------------------------------------------------------------------------------------------
-    # The team
-    # ------------------------------------------------------------------------------------------------------------
-
-    @property
-    def n_copies(self) -> int:
-        """Number of environment copies: VecEnv rows / n_agents."""
-        assert self.n_agents is not None
-        return self.n_envs // self.n_agents
-
-    def _read_agents(self, env: VecEnv, n_agents: int | None) -> None:
-        """Set ``n_agents`` and ``agent_names`` from the env (or the argument) and check the VecEnv's rows and team."""
-        env_n_agents = getattr(env, "n_agents", None)
-        if n_agents is not None:
-            check_int("n_agents", n_agents, 1)
-        names = getattr(env, "possible_agents", None)
-        if env_n_agents is not None and n_agents is not None and env_n_agents != n_agents:
-            if self.agent_names is not None and names is not None:
-                # a model that knows its team (loaded, or set_env) on a VecEnv of another team
-                self.check_team([str(name) for name in names], "the VecEnv")
-            raise ValueError(f"n_agents={n_agents} disagrees with the env's n_agents={env_n_agents}")
-        n_agents = n_agents if n_agents is not None else env_n_agents
-        if n_agents is None:
-            n_agents = self.n_agents  # restored by load()
-        if n_agents is None:
-            raise ValueError(
-                f"{type(self).__name__} needs the number of agents: build the env with "
-                "sb3_maddpg.make_multiagent_vec_env (it sets `n_agents`) or pass n_agents=..."
-            )
-        if env.num_envs % n_agents != 0:
-            raise ValueError(
-                f"the VecEnv has {env.num_envs} rows, which is not a multiple of n_agents={n_agents}; "
-                "rows must be agent-major inside each copy (row = copy * n_agents + agent)"
-            )
-        env_agent_spaces = getattr(env, "agent_spaces", None)
-        if self.agent_names is not None and env_agent_spaces != self.agent_spaces:
-            # a model that knows its team's spaces (loaded, or set_env) on a VecEnv whose agents' spaces differ
-            raise ValueError(
-                f"this {type(self).__name__} model's agents have the spaces {self.agent_spaces or 'of the VecEnv'}, "
-                f"but the VecEnv's agents have {env_agent_spaces or 'its spaces'}"
-            )
-        self.agent_spaces = env_agent_spaces
-        # Agents may leave before the episode ends (make_multiagent_vec_env's black_death): the losses read it
-        self.departures = bool(getattr(env, "departures", False))
-        self.n_agents = int(n_agents)
-        if names is not None and len(names) == self.n_agents:
-            names = [str(name) for name in names]
-            if self.agent_names is not None and self.agent_names != default_agent_names(self.n_agents):
-                self.check_team(names, "the VecEnv")
-            self.agent_names = names
-        elif self.agent_names is None or len(self.agent_names) != self.n_agents:
-            self.agent_names = default_agent_names(self.n_agents)
-
-    def _check_action_noise(self, action_noise: ActionNoise | None, n_rows: int) -> None:
-        """
-        Refuse a noise of another shape than the actions (NumPy would broadcast a 1-D noise silently, or fail at the
-        first step), or a ``VectorizedActionNoise`` for another number of VecEnv rows.
-        """
-        if action_noise is None:
-            return
-        if is_discrete(self.action_space):
-            raise ValueError(
-                f"action_noise applies to continuous (Box) actions; with {self.action_space} actions the rollouts explore "
-                "by sampling the actors' logits (Gumbel-max): leave action_noise=None"
-            )
-        action_shape = tuple(self.action_space.shape)  # type: ignore[arg-type]
-        if isinstance(action_noise, VectorizedActionNoise):
-            if action_noise.n_envs != n_rows:
-                raise ValueError(
-                    f"action_noise is a VectorizedActionNoise for {action_noise.n_envs} rows, but the VecEnv has {n_rows} "
-                    f"rows ({self.n_copies} copies x {self.n_agents} agents); give one noise of shape {action_shape} "
-                    "and it is applied to every row"
-                )
-            action_noise = action_noise.noises[0]
-        mean = getattr(action_noise, "_mu", None)
-        if mean is not None and np.shape(mean) != action_shape:
-            raise ValueError(
-                f"action_noise has shape {np.shape(mean)}, but each agent's action has shape {action_shape}: give a "
-                f"mean (and sigma) of shape {action_shape}"
-            )
-
-    def check_team(self, names: list[str], where: str) -> None:
-        """
-        Refuse a team other than the model's: a model of N agents reads the rows of a larger team as several copies
-        of its own, and would act and report plausible but wrong numbers.
-
-        :param names: the agents of the VecEnv (or observations) the model is asked to act on, in row order
-        :param where: what holds them, for the message
-        :raises ValueError: naming both teams
-        """
-        assert self.n_agents is not None
-        own = self.agent_names or default_agent_names(self.n_agents)
-        same_names = own == names or own == default_agent_names(self.n_agents)
-        if len(names) != self.n_agents or not same_names:
-            raise ValueError(
-                f"this {type(self).__name__} model acts for a team of {_describe_team(own)}, but {where} has a team "
-                f"of {_describe_team(names)}; use an env with the model's team (the same agents and n_agents)"
-            )
-
-    def set_env(self, env: GymEnv, force_reset: bool = True) -> None:
-        names = getattr(env, "possible_agents", None)
-        if names is not None:
-            self.check_team([str(name) for name in names], "the VecEnv")
-        super().set_env(env, force_reset=force_reset)
-        assert self.env is not None
-        self._read_agents(self.env, self.n_agents)
-
-    def predict(
-        self,
-        observation: np.ndarray | dict[str, np.ndarray],
-        state: tuple[np.ndarray, ...] | None = None,
-        episode_start: np.ndarray | None = None,
-        deterministic: bool = False,
-    ) -> tuple[np.ndarray | dict[str, np.ndarray], tuple[np.ndarray, ...] | None]:
-        """
-        Actions of SB3's rows (row = copy * n_agents + agent; row r is acted on by the policy's agent r mod n_agents),
-        or, given a PettingZoo ``ParallelEnv``'s observation dict (agent -> observation), the dict of the agents' actions.
-
-        Observations from ``make_multiagent_vec_env`` carry their team (:class:`~sb3_maddpg.common.vec_env.AgentRows`):
-        those of another team than the model's are refused, wherever they come from (``evaluate_policy``, RL Zoo's
-        ``enjoy``, a loop of your own).
-
-        :param observation: the observation rows, or a dict agent -> observation of the model's agents (those still
-            in the episode; an agent missing from the dict gets no action)
-        :param state: unused (no recurrent policy)
-        :param episode_start: unused
-        :param deterministic: unused: the actors are deterministic, exploration noise is added during ``learn``
-        :return: the actions (rows, or a dict agent -> action) and None
-        """
-        if is_agent_dict(observation):
-            assert self.agent_names is not None
-            self._check_agent_observations(observation)  # type: ignore[arg-type]
-            padded_shape = tuple(self.observation_space.shape) if self.agent_spaces is not None else None  # type: ignore[arg-type]
-            rows, agents = rows_from_agent_dict(observation, self.agent_names, padded_shape)  # type: ignore[arg-type]
-            actions, state = self.predict(rows, state, episode_start, deterministic)
-            return {
-                agent: self._own_action(row, actions[row]) for row, agent in enumerate(self.agent_names) if agent in agents
-            }, state
-        names = getattr(observation, "possible_agents", None)
-        if names is not None:
-            self.check_team(list(names), "the observations' VecEnv")
-        if isinstance(observation, np.ndarray):
-            expected = np.dtype(self.observation_space.dtype)
-            if expected.kind in "ui" and observation.dtype.kind == "f":
-                raise TypeError(
-                    f"predict: the observations are {observation.dtype}, but the model's observation space is {expected} "
-                    f"(images of 0-255, as the env gives them); pass the env's observations unchanged"
-                )
-            if observation.dtype.kind == "f" and not np.isfinite(observation).all():
-                raise ValueError(f"predict: the observations hold NaN or infinite values ({_first_non_finite(observation)})")
-        return super().predict(observation, state, episode_start, deterministic)
-
-    def _check_agent_observations(self, observations: dict[str, Any]) -> None:
-        """
-        Refuse, naming the agent, an observation of a PettingZoo dict that is not of the agent's own shape: another
-        agent's (which may fit the padded rows), or, for a model trained with ``black_death=True``, one without the
-        in-episode entry those observations end with.
-
-        :param observations: agent -> observation, as ``predict`` gets them
-        """
-        assert self.agent_names is not None and self.n_agents is not None
-        if self.agent_spaces is not None:
-            shapes = [tuple(space.shape) for space in self.agent_spaces.observation_spaces]
-        else:
-            shapes = [tuple(self.observation_space.shape)] * self.n_agents  # type: ignore[arg-type]
-        for agent, value in observations.items():
-            if agent not in self.agent_names:
-                continue  # named by rows_from_agent_dict, with the team
-            shape, own = np.shape(value), shapes[self.agent_names.index(agent)]
-            if shape == own:
-                continue
-            if self.departures and shape[:-1] == own[:-1] and shape[-1:] == (own[-1] - 1,):
-                raise ValueError(
-                    f"predict: the observation of {agent!r} has {shape[-1]} entries, and the model's {own[-1]}: it was "
-                    "trained with black_death=True, whose observations end with an in-episode entry (1.0 while the agent "
-                    "is in the episode, 0.0 once it has left); pass np.append(observation, 1.0) for each agent in the "
-                    "dict, or step the env made by make_multiagent_vec_env(..., black_death=True)"
-                )
-            if self.agent_spaces is not None:
-                raise ValueError(
-                    f"predict: the observation of {agent!r} has the shape {shape}, but {agent!r}'s own observations "
-                    f"have the shape {own}; pass each agent its own observation (another agent's width is not accepted, "
-                    "even where it fits the padded rows)"
-                )
-
-    def _own_action(self, agent: int, action: np.ndarray) -> np.ndarray:
-        """Agent ``agent``'s action in its own space: a padded Box action cut to the agent's width."""
-        if self.agent_spaces is None or is_discrete(self.action_space):
-            return action
-        return action[: int(self.agent_spaces.action_widths[agent])]
-
-    def _mask_padded_actions(self, action: np.ndarray, buffer_action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """
-        For agents with action spaces of their own: no padded entry reaches the replay buffer. Box: the padded
-        entries (random, or exploration noise) become 0. Discrete: a random action beyond an agent's n is drawn
-        again from the agent's own actions (uniformly, with the action space's generator).
-
-        :param action: the env's actions (rows)
-        :param buffer_action: the actions to store (rows)
-        :return: both, masked
-        """
-        if self.agent_spaces is None:
-            return action, buffer_action
-        assert self.n_agents is not None
-        widths = np.tile(self.agent_spaces.action_widths, len(action) // self.n_agents)  # (rows,)
-        if is_discrete(self.action_space):
-            start = int(self.action_space.start)  # type: ignore[attr-defined]
-            invalid = np.asarray(action) - start >= widths
-            if invalid.any():
-                action = np.array(action, copy=True)
-                action[invalid] = start + self.action_space.np_random.integers(0, widths[invalid])
-            return action, action
-        padded = np.arange(buffer_action.shape[-1])[None, :] >= widths[:, None]
-        buffer_action = np.where(padded, 0.0, buffer_action).astype(buffer_action.dtype, copy=False)
-        return self.policy.unscale_action(buffer_action), buffer_action
 
     # ------------------------------------------------------------------------------------------------------------
     # Building: the team, the replay buffer, the exploration noise and the policy
@@ -705,7 +408,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
                 row = int(np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(axis=1))[0])
                 copy, agent = divmod(row, self.n_agents)
                 raise ValueError(
-                    f"the env returned a non-finite {what} ({_first_non_finite(values[row])}) for agent "
+                    f"the env returned a non-finite {what} ({first_non_finite(values[row])}) for agent "
                     f"{self.agent_names[agent]!r} of env copy {copy} at timestep {self.num_timesteps}: fix the env "
                     "(SB3's VecCheckNan wrapper finds the step that produces it)"
                 )
@@ -721,7 +424,7 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
         if not contains_callback(callback, EpisodeMetricsCallback):
             callback = CallbackList([callback, EpisodeMetricsCallback()])
         # SB3's progress bar (RL Zoo's -P) would count VecEnv rows; evaluations would count agent rows as episodes
-        callback = _count_joint_steps(callback)
+        callback = count_joint_steps(callback)
         evaluate_joint_episodes(callback)
         if progress_bar and not contains_callback(callback, JointStepProgressBarCallback):
             callback = CallbackList([callback, JointStepProgressBarCallback()])
@@ -786,159 +489,3 @@ class MultiAgentOffPolicyAlgorithm(OffPolicyAlgorithm):
                 reset_num_timesteps=reset_num_timesteps,
                 progress_bar=progress_bar,
             )
-
-    # ------------------------------------------------------------------------------------------------------------
-    # Saving and loading
-    # ------------------------------------------------------------------------------------------------------------
-
-    def save(
-        self,
-        path: str | pathlib.Path | io.BufferedIOBase,
-        exclude: Iterable[str] | None = None,
-        include: Iterable[str] | None = None,
-    ) -> None:
-        """
-        Save the model as SB3 does (a zip of the class parameters and the networks), atomically: it is written to a
-        temporary file in the same folder and moved into place, so an interrupted save leaves the previous file whole.
-        The random states (Python, NumPy, PyTorch, the action space, the env copies' last resets) are saved with it,
-        and ``load`` restores them: see ``sb3_maddpg.common.random_state``.
-
-        :param path: the file (``.zip`` is added when the name has no suffix), or an open binary file
-        :param exclude: names of parameters to leave out, in addition to the default ones
-        :param include: names of parameters to save although they are excluded by default
-        """
-        self._saved_random_states = capture_random_states(self)
-        try:
-            base_save = super().save
-            atomic_save(lambda file: base_save(file, exclude=exclude, include=include), path, suffix="zip")
-        finally:
-            del self._saved_random_states
-
-    @classmethod
-    def load(  # type: ignore[override]
-        cls: type[SelfMultiAgentOffPolicyAlgorithm],
-        path: str | pathlib.Path | io.BufferedIOBase,
-        env: GymEnv | None = None,
-        device: th.device | str = "auto",
-        custom_objects: dict[str, Any] | None = None,
-        print_system_info: bool = False,
-        force_reset: bool = True,
-        **kwargs: Any,
-    ) -> SelfMultiAgentOffPolicyAlgorithm:
-        """
-        Load a model saved by ``save`` (as SB3's ``load``), after checking that the file is an intact model of this
-        library, without running code from it (see ``sb3_maddpg.common.model_files``), and restore the random states
-        saved with it (the generators continue where they were when it was saved; call ``set_random_seed`` afterwards
-        to reseed instead). With ``env``, the env must have the model's team.
-
-        :param path: the model file (``.zip`` may be left out) or an open binary file
-        :param env: the environment to act and learn on (None: only to predict)
-        :param device: the device of the networks
-        :param custom_objects: objects to use instead of the saved ones (as in SB3), e.g. a learning rate saved as code
-        :param print_system_info: print the system info of the saved model and of this one
-        :param force_reset: reset the env before the next ``learn`` (as in SB3)
-        :param kwargs: attributes to change while loading (as in SB3)
-        :return: the model
-        :raises ValueError: if the file is not a model of this library or is damaged, or the env's team is not the model's
-        """
-        # Every pickled class parameter is read here, without running code (model_files.restricted_loads), and handed
-        # to SB3 as custom_objects, so that SB3's load unpickles none; those that ``kwargs`` replace are not read.
-        given = {**{key: value for key, value in kwargs.items() if key != "policy_kwargs"}, **(custom_objects or {})}
-        custom_objects = read_maddpg_data(path, None, given, cls.saved_model_keys)  # type: ignore[arg-type]
-        cls._check_saved_algorithm(custom_objects.get("policy_class"), path)
-        try:
-            model = super().load(path, env, device, custom_objects, print_system_info, force_reset, **kwargs)
-        except READ_ERRORS as error:
-            first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-            name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the model file"
-            raise ValueError(f"{name} is damaged or was saved by an incompatible version: {first_line}") from error
-        states = model.__dict__.pop("_saved_random_states", None)
-        if states is not None:
-            restore_random_states(model, states)
-        return model
-
-    @classmethod
-    def _check_saved_algorithm(cls, policy_class: Any, path: str | pathlib.Path | io.BufferedIOBase) -> None:
-        """
-        Refuse a model saved by another algorithm of this library: a MATD3 model loaded as MADDPG would lose its twin
-        critics' delay and smoothing, a MADDPG model loaded as MATD3 would train on with one critic.
-
-        :param policy_class: the saved policy class
-        :param path: the model file, for the message
-        :raises ValueError: naming both algorithms
-        """
-        saved = algorithm_of_policy(policy_class)
-        if saved is None or saved.policy_aliases.get("MlpPolicy") is cls.policy_aliases.get("MlpPolicy"):
-            return
-        name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the model file"
-        raise ValueError(
-            f"{name} is a {saved.__name__} model (its policy is {policy_class.__module__}.{policy_class.__qualname__}), "
-            f"not a {cls.__name__} model: load it with {saved.__name__}.load (on the command line: "
-            f"--algo {saved.__name__.lower()})"
-        )
-
-    def save_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase) -> None:
-        """
-        Save the replay buffer as a pickle file, atomically (see ``save``).
-
-        :param path: the file (``.pkl`` is added when the name has no suffix), or an open binary file
-        """
-        assert self.replay_buffer is not None, "The replay buffer is not defined"
-        atomic_save(super().save_replay_buffer, path, suffix="pkl")  # type: ignore[arg-type]
-
-    def load_replay_buffer(self, path: str | pathlib.Path | io.BufferedIOBase, truncate_last_traj: bool = True) -> None:
-        """
-        Load a replay buffer saved by ``save_replay_buffer``, after checking that it is whole (its fields agree with
-        each other, its rewards are finite: ``MultiAgentReplayBuffer.check_loaded``) and fits this model: the same
-        agents, observation shape and dtype, and action size. A buffer from another number of environment copies is laid
-        out again for this model's copies (``MultiAgentReplayBuffer.with_copies``): every joint transition is kept,
-        up to this model's ``buffer_size``.
-
-        :param path: the pickle file, or an open binary file
-        :param truncate_last_traj: unused (only for SB3's ``HerReplayBuffer``)
-        :raises ValueError: if the buffer is damaged, or does not fit, naming its shapes and the model's
-        """
-        name = os.fspath(path) if isinstance(path, str | os.PathLike) else "the replay buffer file"
-        try:
-            # A pickle file: read without running code (only what a replay buffer of this library is made of)
-            with open_path(path, "r", self.verbose, suffix="pkl") as file:
-                buffer = restricted_loads(file.read())
-        except (pickle.UnpicklingError, EOFError, AttributeError, ImportError) as error:
-            raise ValueError(f"{name} is not a replay buffer that can be read here, or is damaged: {error}") from error
-        self.replay_buffer = self._fit_replay_buffer(buffer, name)
-        self.replay_buffer.device = self.device
-
-    def _fit_replay_buffer(self, buffer: Any, name: str) -> MultiAgentReplayBuffer:
-        """Check that a loaded buffer fits the model; lay it out for the model's number of copies."""
-        if not isinstance(buffer, MultiAgentReplayBuffer):
-            raise TypeError(f"{name} holds a {type(buffer).__name__}, not a MultiAgentReplayBuffer of joint transitions")
-        buffer.check_loaded(name)
-        assert self.n_agents is not None
-        obs_shape, obs_dtype = tuple(self.observation_space.shape), self.observation_space.dtype  # type: ignore[arg-type]
-        action_dim = action_width(self.action_space)
-        buffer_dtype = np.dtype(buffer.observation_space.dtype)  # type: ignore[arg-type]
-        found = (buffer.n_agents, tuple(buffer.obs_shape), buffer_dtype, buffer.action_dim)
-        if found != (self.n_agents, obs_shape, obs_dtype, action_dim):
-            raise ValueError(
-                f"the replay buffer {name} holds joint transitions of {buffer.n_agents} agents with observations "
-                f"{tuple(buffer.obs_shape)} {buffer_dtype} and actions ({buffer.action_dim},), but this "
-                f"model has {self.n_agents} agents with observations {obs_shape} {obs_dtype} and actions ({action_dim},); "
-                "load a buffer saved with the same env configuration"
-            )
-        n_copies = self.n_envs // self.n_agents
-        # Another number of copies, or another buffer_size (e.g. -params buffer_size:... on resume): laid out again
-        if buffer.n_copies != n_copies or buffer.buffer_size != max(self.buffer_size // n_copies, 1):
-            if self.verbose >= 1:
-                print(
-                    f"Laying the replay buffer out again: {buffer.n_copies} environment copies -> {n_copies}, "
-                    f"{buffer.buffer_size * buffer.n_copies} -> {self.buffer_size} joint transitions"
-                )
-            buffer = buffer.with_copies(n_copies, self.buffer_size)
-        # Storage where this model keeps its buffer: on its device (storage_device) or in host memory
-        assert self.replay_buffer_class is not None
-        on_device = issubclass(self.replay_buffer_class, DeviceReplayBuffer)
-        storage = self.replay_buffer_kwargs.get("storage_device", self.device) if on_device else None
-        if isinstance(buffer, DeviceReplayBuffer) != on_device or (on_device and buffer.storage_device != storage):
-            target = DeviceReplayBuffer if on_device else MultiAgentReplayBuffer
-            buffer = target.from_buffer(buffer, storage_device=storage, device=self.device)
-        return buffer

@@ -164,7 +164,7 @@ def saved_algorithm(policy_class: Any) -> type:
     :return: the algorithm class to load it with
     """
     from sb3_maddpg.algorithms import algorithm_class
-    from sb3_maddpg.common.off_policy_algorithm import algorithm_of_policy
+    from sb3_maddpg.common.saving import algorithm_of_policy
 
     return algorithm_of_policy(policy_class) or algorithm_class("maddpg")
 

@@ -1,6 +1,6 @@
 PYTHON ?= .venv/bin/python
 
-.PHONY: install test lint format bench quickstart
+.PHONY: install test lint format bench quickstart docs
 
 install:
 	bash scripts/install.sh .venv
@@ -22,3 +22,7 @@ bench:
 
 quickstart:
 	bash scripts/quickstart.sh
+
+# the documentation site, warnings as errors (as tests/test_docs_build.py builds it); open docs/_build/html/index.html
+docs:
+	$(PYTHON) -m sphinx -W --keep-going -b html docs docs/_build/html

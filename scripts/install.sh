@@ -7,5 +7,6 @@ venv="${1:-.venv}"
 "$venv/bin/python" -m pip install -q --upgrade pip
 # A torch already in the venv (e.g. a CPU or CUDA build of your choice, >= 2.3) is kept.
 "$venv/bin/python" -c "import torch" 2>/dev/null || "$venv/bin/python" -m pip install -q "torch==2.13.0"
-# hub, notebook and track: what the tests of push-to-hub/load-from-hub, the notebook and train --track need (CI runs them)
-"$venv/bin/python" -m pip install -q -e ".[tests,zoo,postgres,hub,notebook,track]"
+# hub, notebook, track and docs: what the tests of push-to-hub/load-from-hub, the notebook, train --track and the
+# documentation's build need (CI runs them)
+"$venv/bin/python" -m pip install -q -e ".[tests,zoo,postgres,hub,notebook,track,docs]"

@@ -1,4 +1,4 @@
-"""The README's library example runs as written (with a smaller training budget)."""
+"""The README's library example runs as written (with a smaller training budget), and the usage page's resume claim holds."""
 
 import re
 from pathlib import Path
@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 README = Path(__file__).resolve().parent.parent / "README.md"
+USAGE = README.parent / "docs" / "usage.md"
 
 
 def test_readme_library_example_runs(tmp_path, monkeypatch) -> None:
@@ -29,11 +30,11 @@ def test_readme_library_example_runs(tmp_path, monkeypatch) -> None:
     assert list((tmp_path / "runs").rglob("events.out.tfevents.*"))
 
 
-def test_the_readme_says_where_a_resume_continues_exactly() -> None:
+def test_the_usage_page_says_where_a_resume_continues_exactly() -> None:
     from sb3_maddpg.common.vec_env import env_generator
     from sb3_maddpg.zoo.registry import make_multiagent_env
 
-    text = " ".join(README.read_text().split())
+    text = " ".join(USAGE.read_text().split())
     claim = text[text.index("continues exactly") :][:400]
     assert "the UAV envs" in claim and "not on MPE2's tasks" in claim
     # what the claim rests on: the UAV env's generator is read (and saved with the model), MPE2's is not

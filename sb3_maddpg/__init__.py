@@ -13,12 +13,12 @@ _LAZY = {
     "MADDPG": "sb3_maddpg.maddpg",
     "MATD3": "sb3_maddpg.matd3",
     "evaluate_policy": "sb3_maddpg.common.evaluation",
-    "make_multiagent_vec_env": "sb3_maddpg.common.vec_env",
+    "make_multiagent_vec_env": "sb3_maddpg.common.env_util",
 }
 
 if TYPE_CHECKING:
+    from sb3_maddpg.common.env_util import make_multiagent_vec_env
     from sb3_maddpg.common.evaluation import evaluate_policy
-    from sb3_maddpg.common.vec_env import make_multiagent_vec_env
     from sb3_maddpg.maddpg import MADDPG
     from sb3_maddpg.matd3 import MATD3
 

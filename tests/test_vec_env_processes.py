@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
-from sb3_maddpg.common.vec_env import MultiAgentVecEnv, SubprocMultiAgentVecEnv, find_multiagent_vec_env
+from sb3_maddpg.common.env_util import find_multiagent_vec_env
+from sb3_maddpg.common.subproc_vec_env import SubprocMultiAgentVecEnv
+from sb3_maddpg.common.vec_env import MultiAgentVecEnv
 from sb3_maddpg_envs import uav_coverage_v0
 
 # Short episodes, so that automatic resets (terminal observations, reset infos, episode statistics) are compared too

@@ -17,7 +17,7 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from sb3_maddpg.common.vec_env import find_multiagent_vec_env
+from sb3_maddpg.common.env_util import find_multiagent_vec_env
 
 
 def capture_random_states(model: BaseAlgorithm) -> dict[str, Any]:

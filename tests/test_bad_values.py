@@ -10,7 +10,7 @@ from maddpg_test_envs import TargetReachEnv
 from stable_baselines3.common.noise import NormalActionNoise, VectorizedActionNoise
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
-from sb3_maddpg.common import buffers
+from sb3_maddpg.common import host_memory
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = str(ROOT / "zoo_configs" / "maddpg.yml")
@@ -58,8 +58,8 @@ def test_a_mismatched_evaluation_env_is_refused_before_training(tmp_path: Path, 
 
 
 def test_a_buffer_larger_than_the_free_memory_is_warned_without_psutil(monkeypatch) -> None:
-    monkeypatch.setattr(buffers, "psutil", None)
-    monkeypatch.setattr(buffers, "available_host_memory", lambda: 1000)
+    monkeypatch.setattr(host_memory, "psutil", None)
+    monkeypatch.setattr(host_memory, "available_host_memory", lambda: 1000)
     with pytest.warns(UserWarning, match="not have apparently enough memory"):
         _model(buffer_size=10_000)
 

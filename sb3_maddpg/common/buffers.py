@@ -13,31 +13,11 @@ from gymnasium import spaces
 from stable_baselines3.common.buffers import BaseBuffer, ReplayBuffer
 from stable_baselines3.common.vec_env import VecNormalize
 
+from sb3_maddpg.common import host_memory
 from sb3_maddpg.common.actions import action_width, check_action_space, is_discrete, one_hot
-
-try:
-    import psutil
-except ImportError:  # pragma: no cover
-    psutil = None
+from sb3_maddpg.common.buffer_files import check_loaded_buffer
 
 SelfBuffer = TypeVar("SelfBuffer", bound="MultiAgentReplayBuffer")
-
-
-def available_host_memory() -> int | None:
-    """
-    :return: the host memory available to a new allocation, in bytes: psutil's (as SB3 reads it) or, without psutil
-        (not a dependency), Linux's ``MemAvailable``; None where neither can be read
-    """
-    if psutil is not None:
-        return int(psutil.virtual_memory().available)
-    try:
-        with open("/proc/meminfo") as file:
-            for line in file:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return None
 
 
 # The stored arrays (the storage); the device buffer keeps them as tensors
@@ -207,7 +187,7 @@ class MultiAgentReplayBuffer(ReplayBuffer):
             available = th.cuda.mem_get_info(self.storage_device)[0]
             message = f"The replay buffer storage needs {total / 1e9:.2f}GB but there is {available / 1e9:.2f}GB"
             message += f" free memory on {self.storage_device}"
-        elif self.storage_device.type == "cpu" and (host := available_host_memory()) is not None:
+        elif self.storage_device.type == "cpu" and (host := host_memory.available_host_memory()) is not None:
             available = host
             message = "This system does not have apparently enough memory to store the complete "
             message += f"replay buffer {total / 1e9:.2f}GB > {available / 1e9:.2f}GB"
@@ -421,69 +401,12 @@ class MultiAgentReplayBuffer(ReplayBuffer):
 
     def check_loaded(self, name: str) -> None:
         """
-        Check that a buffer read from a file is whole: its counters and arrays agree with each other, and its rewards,
-        actions and (float) observations are finite. A damaged or edited file would otherwise fail inside ``learn``
-        (a position beyond the slots, arrays of another length) or train NaN weights.
+        Check that a buffer read from a file is whole (``sb3_maddpg.common.buffer_files.check_loaded_buffer``).
 
         :param name: the file, for the messages
         :raises ValueError: naming the first field that does not fit
         """
-
-        def damaged(what: str) -> ValueError:
-            return ValueError(f"the replay buffer {name} is damaged: {what}; save it again from a run")
-
-        for field in ("buffer_size", "n_copies", "n_agents", "action_dim"):
-            value = getattr(self, field, None)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-                raise damaged(f"its {field} is {value!r}, not an integer >= 1")
-        slots, copies, agents = int(self.buffer_size), int(self.n_copies), int(self.n_agents)
-        pos, full = getattr(self, "pos", None), getattr(self, "full", None)
-        if isinstance(pos, bool) or not isinstance(pos, int | np.integer) or not 0 <= pos < slots:
-            raise damaged(f"its position pos={pos!r} is outside its {slots} slots (0 to {slots - 1})")
-        if not isinstance(full, bool | np.bool_):
-            raise damaged(f"its full flag is {full!r}, not True or False")
-        obs_shape = tuple(getattr(self, "obs_shape", ()))
-        layout = f"{slots} slots of {copies} copies x {agents} agents, observations {obs_shape}, actions ({self.action_dim},)"
-        expected = {
-            "observations": (slots, copies, agents, *obs_shape),
-            "actions": (slots, copies, agents, self.action_dim),
-            "rewards": (slots, copies, agents),
-            "dones": (slots, copies),
-            "timeouts": (slots, copies),
-            "next_obs_index": (slots, copies),
-            "_next_obs_index_host": (slots, copies),
-            "_pending_host": (copies, agents, *obs_shape),
-        }
-        for field, shape in expected.items():
-            found = getattr(getattr(self, field, None), "shape", None)
-            if found is None or tuple(found) != shape:
-                raise damaged(f"its {field} has shape {None if found is None else tuple(found)}, but {layout} need {shape}")
-        aux = getattr(getattr(self, "_aux", None), "shape", None)
-        if aux is None or len(aux) < 2 or aux[0] < copies or tuple(aux[1:]) != (agents, *obs_shape):
-            raise damaged(f"its next observations (_aux) have shape {aux}, but {layout} need (>= {copies}, {agents}, ...)")
-        n_kept = int(aux[0]) - copies
-        index = np.asarray(self._next_obs_index_host)
-        if index.size and (index.min() < -1 or index.max() >= n_kept):
-            raise damaged(f"its next-observation index points outside its {n_kept} kept next observations")
-        if any(not 0 <= row < n_kept for row in getattr(self, "_free_extra", [])):
-            raise damaged(f"its free list names rows outside its {n_kept} kept next observations")
-        for field, what in (
-            ("rewards", "rewards"),
-            ("actions", "actions"),
-            ("observations", "observations"),
-            ("_aux", "next observations"),
-        ):
-            values = th.as_tensor(getattr(self, field))
-            if not values.is_floating_point():
-                continue
-            # By blocks of slots, so that the check needs little memory beside a large buffer
-            for start in range(0, len(values), 4096):
-                if not bool(th.isfinite(values[start : start + 4096]).all()):
-                    row = start + int(th.nonzero(~th.isfinite(values[start : start + 4096]))[0, 0])
-                    raise ValueError(
-                        f"the replay buffer {name} holds NaN or infinite {what} (the first at slot {row}): training on "
-                        "them would make every weight NaN; save the buffer again from a run whose env returns finite values"
-                    )
+        check_loaded_buffer(self, name)
 
     # --- Copies and layouts: one constructor path ------------------------------------------------------------------
 

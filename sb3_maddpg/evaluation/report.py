@@ -25,8 +25,6 @@ from sb3_maddpg.evaluation.figures import (
 from sb3_maddpg.evaluation.progress import episode_progress
 from sb3_maddpg.evaluation.task_tools import TaskTools, episode_limit, task_tools
 
-DEFAULT_ENV_ID = "uav_coverage_v0"
-
 
 class ModelEnvMismatchError(ValueError):
     """The model file cannot be loaded, or it was trained for another number of agents or other observations."""
@@ -252,15 +250,16 @@ def evaluation_env(
     (``TaskTools.evaluation_kwargs``: on the UAV envs a new start at random places every episode). One env is made to
     find out what it is.
 
-    :param model_path: the model whose run gives the env (None: ``env_id``, else ``uav_coverage_v0``)
+    :param model_path: the model whose run gives the env (None: ``env_id``, else the registry's
+        ``DEFAULT_EVALUATION_ENV_ID``)
     :param env_id: the env; by default the run's
     :param env_kwargs: env arguments over the run's
     :raises ValueError: for an env id that is not a registered multi-agent env
     """
-    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
+    from sb3_maddpg.zoo.registry import DEFAULT_EVALUATION_ENV_ID, MULTIAGENT_ENVS, make_multiagent_env
 
     run_env_id, run_env_kwargs = (None, {}) if model_path is None else find_run_config(model_path)
-    env_id = env_id or run_env_id or DEFAULT_ENV_ID
+    env_id = env_id or run_env_id or DEFAULT_EVALUATION_ENV_ID
     if env_id not in MULTIAGENT_ENVS:
         raise ValueError(f"unknown env {env_id!r}; registered multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
     kwargs = {**run_env_kwargs, **(env_kwargs or {})}
@@ -317,7 +316,7 @@ def evaluate_and_report(
     :param out_dir: output folder
     :param n_episodes: episodes per method
     :param model_path: a saved MADDPG model; None to evaluate the baselines only
-    :param env_id: the env id; by default the model's run's, else ``uav_coverage_v0``
+    :param env_id: the env id; by default the model's run's, else the registry's ``DEFAULT_EVALUATION_ENV_ID``
     :param env_kwargs: env arguments over the model's training ones and the task's ``evaluation_kwargs`` (on the UAV
         envs ``start`` is ``"random"`` unless given here)
     :param seed: seed of the first episode (episode e uses seed + e for every method)

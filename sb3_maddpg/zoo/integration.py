@@ -29,9 +29,12 @@ def register_with_rl_zoo() -> None:
     import rl_zoo3.utils
 
     from sb3_maddpg.algorithms import ALGORITHM_NAMES, algorithm_class
-    from sb3_maddpg.zoo import registry  # noqa: F401  (registers the env ids into Gymnasium's registry)
     from sb3_maddpg.zoo.exp_manager import MultiAgentExperimentManager
     from sb3_maddpg.zoo.hyperparams_opt import convert_maddpg_params, sample_maddpg_params
+    from sb3_maddpg.zoo.registry import load_env_packages
+
+    # the env ids, the installed task packages' included, into Gymnasium's registry, where RL Zoo checks --env
+    load_env_packages()
 
     # One dict object shared by rl_zoo3.utils, .train, .enjoy and .exp_manager: adding a key is seen everywhere.
     for name in ALGORITHM_NAMES:

@@ -511,7 +511,8 @@ def run_plot(args: argparse.Namespace) -> None:
 
     :param args: parsed arguments
     """
-    from sb3_maddpg.evaluation.figures import NotAMonitorFileError, plot_training_logs
+    from sb3_maddpg.evaluation.figures import NotAMonitorFileError
+    from sb3_maddpg.evaluation.report import plot_training_logs, training_log_metrics
 
     if not os.path.exists(args.log):
         raise UsageError(f"--log: {args.log} not found")
@@ -519,7 +520,11 @@ def run_plot(args: argparse.Namespace) -> None:
         raise UsageError(f"--window must be >= 1, got {args.window}")
     _check_writable(args.out, "--out")
     try:
-        paths = plot_training_logs(args.log, args.out, window=args.window)
+        metrics = training_log_metrics(args.log, args.env)
+    except ValueError as error:
+        raise UsageError(f"--env: {error}" if args.env is not None else str(error)) from error
+    try:
+        paths = plot_training_logs(args.log, args.out, window=args.window, metrics=metrics)
     except FileNotFoundError as error:
         raise UsageError(str(error)) from error
     except NotAMonitorFileError as error:
@@ -764,6 +769,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     plot.add_argument("--out", default=os.path.join("results", "figures"), help="output folder")
     plot.add_argument("--window", type=int, help="moving-average window (default: a twentieth of the episodes)")
+    plot.add_argument(
+        "--env",
+        help="the env the logs come from, whose task's metrics are drawn with their labels and pairs (default: the run "
+        "folder's; a bare monitor.csv or TensorBoard folder: each metric of the logs against episode)",
+    )
 
     select = commands.add_parser(
         "select-checkpoint",

@@ -69,8 +69,9 @@ def run_train(argv: list[str], eval_images: bool = True, eval_video: bool = Fals
     RL Zoo's ``train`` (also ``-optimize``) with the given command-line arguments.
 
     :param argv: arguments as for ``python -m rl_zoo3.train``
-    :param eval_images: with ``-tb``, draw the coverage heat map after each evaluation (the UAV envs)
-    :param eval_video: with ``-tb``, record a video of one episode after each evaluation (the UAV envs)
+    :param eval_images: with ``-tb``, draw the task's picture after each evaluation (on the UAV envs the coverage heat
+        map), where the task can draw itself
+    :param eval_video: with ``-tb``, record a video of one episode after each evaluation, where the task can draw itself
     :raises TrainingStopped: after the final save, when SIGTERM or an env worker process that ended stopped the run
     """
     import sys

@@ -66,7 +66,7 @@ ZOO_KEYS = frozenset(
         "monitor_kwargs",
         "noise_type",
         "noise_std",
-        # with noise_type "decaying-normal" (MADDPG's decaying Gaussian noise, SPEC §2)
+        # with noise_type "decaying-normal" (MADDPG's decaying Gaussian noise, docs/algorithm.md, "6. Exploration noise")
         "noise_final_std",
         "noise_decay",
     }

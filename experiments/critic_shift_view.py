@@ -40,10 +40,10 @@ from uav_learning import reject_removed_variants  # the sibling files, not a pac
 from uav_team_positions import covers
 
 from sb3_maddpg import MADDPG
-from sb3_maddpg.zoo.registry import TMC2020_KWARGS
 from sb3_maddpg_envs import uav_coverage_v1
 from sb3_maddpg_envs.uav_coverage.dynamics import commanded_move, step_energy
 from sb3_maddpg_envs.uav_coverage.rewards import energy_cost
+from sb3_maddpg_envs.uav_coverage.scenarios import TMC2020_KWARGS
 
 EVAL_SEED = 10_000  # the first evaluation episode of experiments/uav_learning.py and docs/results.md
 SHIFTS = np.array([(dx, dy) for dx in (-1.0, -0.5, 0.0, 0.5, 1.0) for dy in (-1.0, -0.5, 0.0, 0.5, 1.0)])

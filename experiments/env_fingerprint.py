@@ -4,7 +4,7 @@ changes nothing: run it before and after, the hashes must be equal.
 
 Each case builds a registered env (``uav_coverage_v0``, ``uav_coverage_fast_v0``, ``uav_coverage_v1``,
 ``uav_coverage_cpu_v1``, ``uav_coverage_tmc_v1``, ``uav_coverage_hazard_cpu_v1``, ``uav_coverage_storm_cpu_v1``,
-``uav_coverage_storm_cpu_v2``, with the kwargs of ``sb3_maddpg/zoo/registry.py``, plus parameter combinations that
+``uav_coverage_storm_cpu_v2``, with the kwargs of ``envs/registration.py``, plus parameter combinations that
 exercise the other rules: the hazards' gusts, crashes, link failures, storm strikes and their penalty, the storm zone
 drawn, grounded steps and depletions among them), then plays several episodes with seeded random actions (drawn in
 [-0.1, 1.1], so the clipping is exercised too), resetting with a seed or without one, and hashes every observation,

@@ -28,6 +28,7 @@ from typing import Any
 
 from sb3_maddpg.__main__ import parse_key_values
 from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
+from sb3_maddpg.evaluation.metrics import task_metrics
 from sb3_maddpg.zoo.registry import UsageError, make_multiagent_env
 from sb3_maddpg_envs.uav_coverage.baselines import GreedyStaticController
 
@@ -56,14 +57,16 @@ def compare(n_episodes: int, seed: int = 0, margin: float = MARGIN, env_id: str 
     :param margin: the cautious policy's wall margin
     :param env_id: the registered task
     :param env_kwargs: over the registered env's (``start`` is ``"random"`` already, v1's default)
-    :return: ``results`` (policy -> per-episode metrics) and ``summary`` (rows of ``summarize``)
+    :return: ``results`` (policy -> per-episode metrics), ``summary`` (rows of ``summarize``) and ``metrics`` (the
+        task's, for the table)
     """
+    probe = make_multiagent_env(env_id, **env_kwargs)
     # a task with a storm zone compares entering it with avoiding it (with storm_prob 0 too: the calm control)
-    storm = make_multiagent_env(env_id, **env_kwargs).core.storm_zone is not None
+    storm = probe.core.storm_zone is not None
     results, _ = evaluate_controllers(
         lambda: make_multiagent_env(env_id, **env_kwargs), policies(margin, storm), n_episodes, seed=seed
     )
-    return {"results": results, "summary": summarize(results)}
+    return {"results": results, "summary": summarize(results), "metrics": task_metrics(probe)}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -92,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     report = compare(args.episodes, args.seed, args.margin, args.env, **env_kwargs)
     summary = {row["method"]: row for row in report["summary"]}
     print(f"{args.env} {env_kwargs}, {args.episodes} episodes per policy, seeds {args.seed}..{args.seed + args.episodes - 1}")
-    print(format_table(report["summary"]))
+    print(format_table(report["summary"], report["metrics"]))
     if args.out:
         metadata = {
             "env_id": args.env,
@@ -102,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
             "margin": args.margin,
             "command": " ".join(["python", *sys.argv]),
         }
-        write_results(args.out, report["results"], report["summary"], metadata)
+        write_results(args.out, report["results"], report["summary"], metadata, report["metrics"])
         print(f"written to {args.out}")
     risky, cautious = (summary[row["method"]] for row in report["summary"][:2])
     differ = risky["return_mean"] > cautious["return_mean"] and risky["return_worst_decile"] < cautious["return_worst_decile"]

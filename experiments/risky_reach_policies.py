@@ -14,6 +14,7 @@ import numpy as np
 from pettingzoo import ParallelEnv
 
 from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
+from sb3_maddpg.evaluation.metrics import task_metrics
 from sb3_maddpg_envs.risky_reach_v0 import hand_made_policy, parallel_env
 
 WAYS = ("through", "around")
@@ -46,12 +47,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     results, _ = evaluate_controllers(parallel_env, [HandMadeController(way) for way in WAYS], args.episodes, seed=args.seed)
     summary = summarize(results)
+    metrics = task_metrics(parallel_env())
     print(f"risky_reach_v0, {args.episodes} episodes per policy, seeds {args.seed}..{args.seed + args.episodes - 1}")
-    print(format_table(summary))
+    print(format_table(summary, metrics))
     if args.out:
         metadata = {"env_id": "risky_reach_v0", "n_episodes": args.episodes, "seed": args.seed}
         metadata["command"] = " ".join(["python", *sys.argv])
-        write_results(args.out, results, summary, metadata)
+        write_results(args.out, results, summary, metadata, metrics)
         print(f"written to {args.out}")
     return 0
 

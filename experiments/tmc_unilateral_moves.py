@@ -15,9 +15,9 @@ import argparse
 
 import numpy as np
 
-from sb3_maddpg.zoo.registry import TMC2020_KWARGS
 from sb3_maddpg_envs import uav_coverage_v1
 from sb3_maddpg_envs.uav_coverage.baselines import GreedyStaticController
+from sb3_maddpg_envs.uav_coverage.scenarios import TMC2020_KWARGS
 
 DISTANCES = (0.1, 0.25, 0.5, 1.0)  # in l_max
 N_HEADINGS = 16

@@ -26,7 +26,8 @@ from stable_baselines3.common.callbacks import BaseCallback
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
 from sb3_maddpg.common.noise import DecayingGaussianNoise
 from sb3_maddpg.evaluation.baselines import ModelController
-from sb3_maddpg.evaluation.evaluate import HAZARD_COUNTS, METRICS, evaluate_controllers, worst_decile
+from sb3_maddpg.evaluation.evaluate import evaluate_controllers, worst_decile
+from sb3_maddpg.evaluation.metrics import task_metrics
 from sb3_maddpg.zoo.registry import make_multiagent_env
 
 EVAL_SEED = 10_000
@@ -39,10 +40,11 @@ def evaluate(model: MADDPG, env_id: str, env_kwargs: dict[str, Any], n_episodes:
         lambda: make_multiagent_env(env_id, **kwargs), [ModelController(model)], n_episodes, seed=EVAL_SEED
     )
     episodes = results["maddpg"]
-    summary = {key: float(np.mean([e[key] for e in episodes])) for key in (*METRICS, "wall_hits", "return")}
+    metrics = task_metrics(make_multiagent_env(env_id, **kwargs))
+    summary = {key: float(np.mean([e[key] for e in episodes])) for key in (*metrics.values, "wall_hits", "return")}
     summary["return_worst_decile"] = worst_decile([e["return"] for e in episodes])
     # hazard events per episode, where the env reports them (uav_coverage_hazard_cpu_v1)
-    summary.update({key: float(np.mean([e[key] for e in episodes])) for key in HAZARD_COUNTS if key in episodes[0]})
+    summary.update({key: float(np.mean([e[key] for e in episodes])) for key in metrics.table_counts if key in episodes[0]})
     return summary
 
 

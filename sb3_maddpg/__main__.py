@@ -24,7 +24,13 @@ from typing import Any, NoReturn
 import yaml
 
 from sb3_maddpg.algorithms import ALGORITHM_NAMES
-from sb3_maddpg.zoo.registry import TrainingStopped, UsageError, check_env_kwargs
+from sb3_maddpg.zoo.registry import (
+    DEFAULT_ENV_ID,
+    DEFAULT_EVALUATION_ENV_ID,
+    TrainingStopped,
+    UsageError,
+    check_env_kwargs,
+)
 
 PROG = "sb3_maddpg"
 ZOO_COMMANDS = ("train", "optimize", "enjoy", "record-video")
@@ -33,10 +39,8 @@ PLAY_COMMANDS = ("enjoy", "record-video")
 DEFAULT_ALGO = "maddpg"
 # The library's algorithms (sb3_maddpg/algorithms.py), each with its RL Zoo hyperparameter file zoo_configs/<algo>.yml
 MULTIAGENT_ALGOS = ALGORITHM_NAMES
-# The CPU configuration of the quick start; uav_coverage_v0 (the report's) and uav_coverage_v1 are meant for a GPU.
-DEFAULT_ENV = "uav_coverage_cpu_v1"
 DEFAULTS_HELP = (
-    f"defaults: --algo {DEFAULT_ALGO} --env {DEFAULT_ENV} (the CPU configuration) -conf the algorithm's packaged "
+    f"defaults: --algo {DEFAULT_ALGO} --env {DEFAULT_ENV_ID} (the CPU configuration) -conf the algorithm's packaged "
     "zoo_configs/<algo>.yml (maddpg.yml, matd3.yml)"
 )
 
@@ -101,7 +105,7 @@ def _zoo_preparser(command: str) -> argparse.ArgumentParser:
     """The RL Zoo flags the command checks before handing over; every other flag goes to RL Zoo untouched."""
     parser = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
     parser.add_argument("--algo", default=DEFAULT_ALGO)
-    parser.add_argument("--env", default=DEFAULT_ENV)
+    parser.add_argument("--env", default=DEFAULT_ENV_ID)
     parser.add_argument("--env-kwargs", nargs="+")
     parser.add_argument("--gym-packages", nargs="+", default=[])
     if command in PLAY_COMMANDS:
@@ -139,8 +143,9 @@ def _import_gym_packages(modules: list[str]) -> None:
 def _check_env(env_id: str, algo: str) -> None:
     import gymnasium as gym
 
-    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, is_multiagent_env
+    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, is_multiagent_env, load_env_packages
 
+    load_env_packages()  # the installed task packages' ids, into Gymnasium's registry too
     if env_id not in gym.registry:
         close = difflib.get_close_matches(env_id, list(MULTIAGENT_ENVS) + list(gym.registry), n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
@@ -291,7 +296,7 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     if not _has_flag(argv, "--algo"):
         argv = ["--algo", DEFAULT_ALGO, *argv]
     if not _has_flag(argv, "--env"):
-        argv = ["--env", DEFAULT_ENV, *argv]
+        argv = ["--env", DEFAULT_ENV_ID, *argv]
     _check_env(args.env, args.algo)
 
     env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs")
@@ -422,7 +427,6 @@ def run_evaluate(args: argparse.Namespace) -> None:
     from sb3_maddpg.evaluation.baselines import make_baselines
     from sb3_maddpg.evaluation.progress import wants_progress_bar
     from sb3_maddpg.evaluation.report import (
-        DEFAULT_ENV_ID,
         ModelEnvMismatchError,
         OpponentEnvMismatchError,
         check_state_steps,
@@ -445,7 +449,7 @@ def run_evaluate(args: argparse.Namespace) -> None:
         run_env_id, run_env_kwargs = find_run_config(model_path)
     if args.episodes < 1:
         raise UsageError(f"--episodes must be >= 1, got {args.episodes}")
-    env_id = args.env or run_env_id or DEFAULT_ENV_ID
+    env_id = args.env or run_env_id or DEFAULT_EVALUATION_ENV_ID
     if env_id not in MULTIAGENT_ENVS:
         raise UsageError(f"unknown env {env_id!r}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
     env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs") or {}
@@ -507,7 +511,8 @@ def run_plot(args: argparse.Namespace) -> None:
 
     :param args: parsed arguments
     """
-    from sb3_maddpg.evaluation.figures import NotAMonitorFileError, plot_training_logs
+    from sb3_maddpg.evaluation.figures import NotAMonitorFileError
+    from sb3_maddpg.evaluation.report import plot_training_logs, training_log_metrics
 
     if not os.path.exists(args.log):
         raise UsageError(f"--log: {args.log} not found")
@@ -515,7 +520,11 @@ def run_plot(args: argparse.Namespace) -> None:
         raise UsageError(f"--window must be >= 1, got {args.window}")
     _check_writable(args.out, "--out")
     try:
-        paths = plot_training_logs(args.log, args.out, window=args.window)
+        metrics = training_log_metrics(args.log, args.env)
+    except ValueError as error:
+        raise UsageError(f"--env: {error}" if args.env is not None else str(error)) from error
+    try:
+        paths = plot_training_logs(args.log, args.out, window=args.window, metrics=metrics)
     except FileNotFoundError as error:
         raise UsageError(str(error)) from error
     except NotAMonitorFileError as error:
@@ -581,7 +590,7 @@ def add_hub_commands(commands: Any) -> None:
     )
     for parser in (push, load):
         parser.add_argument("--algo", default=DEFAULT_ALGO, choices=MULTIAGENT_ALGOS, help=f"default: {DEFAULT_ALGO}")
-        parser.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
+        parser.add_argument("--env", default=DEFAULT_ENV_ID, help=f"env id (default: {DEFAULT_ENV_ID})")
         parser.add_argument("-f", "--folder", default="logs", help="log folder (default: logs)")
         parser.add_argument("-orga", "--organization", required=True, help="the Hub user or organisation")
         parser.add_argument("-name", "--repo-name", help="repository name (default: <algo>-<env>)")
@@ -727,7 +736,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     evaluate.add_argument("--episodes", type=int, default=10, help="episodes per method (default: 10)")
     evaluate.add_argument("--out", default=os.path.join("results", "evaluation"), help="output folder")
-    evaluate.add_argument("--env", help="env id (default: the model's training env, else uav_coverage_v0)")
+    evaluate.add_argument("--env", help=f"env id (default: the model's training env, else {DEFAULT_EVALUATION_ENV_ID})")
     evaluate.add_argument(
         "--gym-packages", nargs="+", default=[], help="modules to import first, which register envs (as in train)"
     )
@@ -760,6 +769,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     plot.add_argument("--out", default=os.path.join("results", "figures"), help="output folder")
     plot.add_argument("--window", type=int, help="moving-average window (default: a twentieth of the episodes)")
+    plot.add_argument(
+        "--env",
+        help="the env the logs come from, whose task's metrics are drawn with their labels and pairs (default: the run "
+        "folder's; a bare monitor.csv or TensorBoard folder: each metric of the logs against episode)",
+    )
 
     select = commands.add_parser(
         "select-checkpoint",

@@ -20,7 +20,7 @@ import contextlib
 import os
 import shutil
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -282,18 +282,17 @@ def _env_kwargs_flag(env_kwargs: dict[str, Any] | None) -> str:
     return " --env-kwargs " + " ".join(f"{key}:{value!r}" for key, value in env_kwargs.items())
 
 
-def card_metadata(algorithm: str, env_id: str, summary_row: dict[str, Any]) -> str:
+def card_metadata(algorithm: str, env_id: str, summary_row: dict[str, Any], metrics: Sequence[str] = ()) -> str:
     """
     The card's YAML metadata: tags and the model index the Hub shows (the team return as RL Zoo's ``mean_reward``,
-    and c_T, f_T, e_T, eta_T where the env reports them).
+    and the task's episode-end values where the env reports them: on the UAV envs c_T, f_T, e_T, eta_T).
 
     :param algorithm: ``MADDPG`` or ``MATD3``
     :param env_id: the env id
     :param summary_row: the model's row of ``evaluate``'s summary
+    :param metrics: the task's episode-end values (``TaskMetrics.values`` of ``evaluate``'s report)
     :return: the YAML text
     """
-    from sb3_maddpg.evaluation.evaluate import METRICS
-
     hub = require_huggingface_hub()
 
     def result(metric: str, key: str) -> Any:
@@ -309,7 +308,7 @@ def card_metadata(algorithm: str, env_id: str, summary_row: dict[str, Any]) -> s
         )
 
     results = [result("mean_reward", "return")]
-    results += [result(key, key) for key in METRICS if f"{key}_mean" in summary_row]
+    results += [result(key, key) for key in metrics if f"{key}_mean" in summary_row]
     data = hub.ModelCardData(
         library_name="stable-baselines3",
         tags=[
@@ -364,7 +363,7 @@ def model_card(
     flags = f"--algo {algo} --env {env_id}"
     lines = [
         "---",
-        card_metadata(algorithm, env_id, evaluation["summary"][0]).rstrip(),
+        card_metadata(algorithm, env_id, evaluation["summary"][0], evaluation["metrics"].values).rstrip(),
         "---",
         "",
         f"# {algorithm} team on {env_id}",

@@ -1,4 +1,4 @@
-"""PoIs (SPEC 1.2) and start positions (SPEC 1.3)."""
+"""PoIs and start positions (docs/environment.md, "Parameters")."""
 
 import numpy as np
 import pytest

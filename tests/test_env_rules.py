@@ -1,4 +1,5 @@
-"""SPEC 1.4-1.6 checked against values worked out by hand in tiny scenarios of the numpy core."""
+"""The rules of a step, the metrics and the episode's end (docs/environment.md, "One step" and "Metrics") checked against
+values worked out by hand in tiny scenarios of the numpy core."""
 
 import numpy as np
 import pytest

@@ -6,9 +6,8 @@ import pickle
 import numpy as np
 import pytest
 
-from sb3_maddpg.zoo import registry
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
-from sb3_maddpg_envs import uav_coverage_v0, uav_coverage_v1
+from sb3_maddpg_envs import registration, uav_coverage_v0, uav_coverage_v1
 from sb3_maddpg_envs.uav_coverage import SCENARIOS, UAVCoverageConfig, UAVCoverageCore, scenarios
 from sb3_maddpg_envs.uav_coverage.hazards import HazardHook
 
@@ -40,7 +39,7 @@ def test_scenario_defaults_equal_the_registry_entry(env_id: str):
 
 
 def test_scenario_tables_are_the_versioned_modules_and_the_registry():
-    assert scenarios.TMC2020_KWARGS == registry.TMC2020_KWARGS
+    assert registration.ENVS["uav_coverage_tmc_v1"][1] is scenarios.TMC2020_KWARGS
     assert uav_coverage_v1.V1_DEFAULTS is scenarios.V1_DEFAULTS
     assert uav_coverage_v1.HAZARDS is scenarios.HAZARDS and uav_coverage_v1.STORM is scenarios.STORM
     assert scenarios.V1.defaults == uav_coverage_v1.V1_DEFAULTS

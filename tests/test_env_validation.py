@@ -1,4 +1,4 @@
-"""Every validated parameter rejects a bad value with a ValueError naming it (SPEC 1.1)."""
+"""Every validated parameter rejects a bad value with a ValueError naming it (docs/environment.md, "Parameters")."""
 
 import numpy as np
 import pytest

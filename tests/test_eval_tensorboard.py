@@ -15,10 +15,10 @@ from stable_baselines3.common.logger import configure
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
 from sb3_maddpg.common.eval_tensorboard import (
-    IMAGE_TAG,
     MAP_SIZE_PX,
     VIDEO_TAG,
     EvalTensorBoardCallback,
+    image_tag,
     kept_random_states,
 )
 from sb3_maddpg.evaluation.baselines import ModelController
@@ -28,6 +28,8 @@ from sb3_maddpg_envs.uav_coverage.plotting import coverage_map
 
 KWARGS = dict(obs_size=16, n_uavs=3, max_cycles=10)
 SEED = 3
+# The UAV task's picture (its tools' map_name)
+IMAGE_TAG = "eval/coverage_map"
 
 
 def event_accumulator(folder: Path):
@@ -68,6 +70,7 @@ def test_the_coverage_map_read_back_from_the_event_file(tmp_path: Path) -> None:
     after_eval = EvalTensorBoardCallback(functools.partial(uav_coverage_v1.parallel_env, **KWARGS), seed=SEED)
     model = train(tmp_path, after_eval, learning_starts=1000)
     accumulator = event_accumulator(tmp_path)
+    assert image_tag(uav_coverage_v1.parallel_env(**KWARGS).task_tools) == IMAGE_TAG
     images = accumulator.Images(IMAGE_TAG)
     assert [image.step for image in images] == [10, 20, 30]
     assert VIDEO_TAG not in accumulator.Tags()["images"]  # the video is opt-in

@@ -9,6 +9,7 @@ from PIL import Image
 
 from sb3_maddpg.evaluation import RandomController, evaluate_and_report, evaluate_controllers, plot_training_logs, summarize
 from sb3_maddpg.evaluation.evaluate import format_table, worst_decile
+from sb3_maddpg.evaluation.metrics import TaskMetrics
 from sb3_maddpg.zoo.registry import make_multiagent_env
 from sb3_maddpg_envs import uav_coverage_v0
 from sb3_maddpg_envs.uav_coverage.baselines import GreedyStaticController, assign_targets, fly_to, greedy_placement
@@ -133,7 +134,8 @@ def test_plot_training_logs_from_a_monitor_file(tmp_path) -> None:
         lines.append(f"{-episode},100,{episode},{c},{f},0.5,{c * f / 0.5},0,1")
     (run / "monitor.csv").write_text("\n".join(lines) + "\n")
 
-    paths = plot_training_logs(run, tmp_path / "figures")
+    # a bare monitor file says nothing of its env: the env given brings the task's pairs and labels
+    paths = plot_training_logs(run, tmp_path / "figures", env_id="uav_coverage_v0")
     assert [path.name for path in paths] == [
         "train_returns_vs_episode.png",
         "train_fairness_vs_coverage.png",
@@ -142,6 +144,9 @@ def test_plot_training_logs_from_a_monitor_file(tmp_path) -> None:
     ]
     for path in paths:
         assert_png(path)
+    # without it, each metric of the file against episode
+    paths = plot_training_logs(run, tmp_path / "unknown")
+    assert [path.name for path in paths] == ["train_returns_vs_episode.png", "train_metrics_vs_episode.png"]
 
 
 def test_plot_training_logs_without_metrics_is_an_error(tmp_path) -> None:
@@ -166,10 +171,13 @@ def test_summary_and_table_show_the_worst_decile_and_the_hazard_events() -> None
     (row,) = summarize(results)
     assert row["return_worst_decile"] == 1.5 and row["return_mean"] == 10.5
     assert row["crashes_mean"] == 0.1
-    table = format_table([row])
+    # the task's event counts after the length, in the task's order
+    table = format_table([row], TaskMetrics(table_counts=("gusts", "crashes", "link_failures")))
     header = table.splitlines()[0]
     assert header == "| method | episodes | team return | worst 10 % team return | length | gusts | crashes |"
     assert "| 10.5000 ± 5.7663 | 1.5000 | 3.0000 ± 0.0000 | 2.0000 ± 0.0000 | 0.1000 ± 0.3000 |" in table
+    # without the task's metrics, those of the summary after the length, in its order
+    assert format_table([row]).splitlines()[0].endswith("| length | crashes | gusts |")
     # an env without hazards: no hazard column
     plain = format_table(summarize({"b": [{"return": 1.0, "length": 2.0}]}))
     assert "crashes" not in plain and "worst 10 % team return" in plain

@@ -9,7 +9,7 @@ import pytest
 from tensorboard_testing import read_hparams
 
 from sb3_maddpg.__main__ import main
-from sb3_maddpg.common.eval_tensorboard import IMAGE_TAG, MAP_SIZE_PX, VIDEO_TAG
+from sb3_maddpg.common.eval_tensorboard import MAP_SIZE_PX, VIDEO_TAG
 
 CONFIG = str(Path(__file__).resolve().parent.parent / "zoo_configs" / "maddpg.yml")
 UAV = ["--env", "uav_coverage_fast_v0", "--env-kwargs", "obs_size:16", "max_cycles:10", "n_uavs:2"]
@@ -40,7 +40,7 @@ def accumulator(folder: Path):
 def test_uav_run_with_the_video(tmp_path: Path) -> None:
     folder = train(tmp_path, *UAV, *EVALUATIONS, "--eval-video")
     events = accumulator(folder)
-    maps, videos = events.Images(IMAGE_TAG), events.Images(VIDEO_TAG)
+    maps, videos = events.Images("eval/coverage_map"), events.Images(VIDEO_TAG)
     assert [image.step for image in maps] == [20, 40] == [video.step for video in videos]
     assert {(image.width, image.height) for image in maps} == {MAP_SIZE_PX}
     assert all(video.encoded_image_string.startswith(b"GIF8") for video in videos)

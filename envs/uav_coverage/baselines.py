@@ -207,8 +207,8 @@ def greedy_step_scores(
     The paper defines this greedy in one line ("the action with the best immediate reward"); what it leaves open is
     decided here (docs/results.md, "The published setting"):
 
-    - the reward has the form the report's reward took from the paper (SPEC §1.4, rule 8, without the report's entropy
-      bonus): f' * sum_k (c'(k) - c(k)) / e_i - p_i, with c' and f' the coverage scores and Jain's
+    - the reward has the form the report's reward took from the paper (docs/environment.md, "One step", step 6,
+      without the report's entropy bonus): f' * sum_k (c'(k) - c(k)) / e_i - p_i, with c' and f' the coverage scores and Jain's
       fairness after the step, e_i the UAV's own energy this step as the env charges it (E_h hovering, eta l_max for a
       full move, less for a move the wall rule cuts short) and p_i its penalties: the env's wall rule (refused or
       clipped) and, when N > 1, the comm penalty if no active teammate is within R of where it ends;

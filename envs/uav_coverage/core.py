@@ -97,7 +97,8 @@ class UAVCoverageCore:
     ``pois``, ...: the config's docstring describes each); every parameter reads as an attribute of the core too
     (``core.map_size``), and ``max_cycles`` can be set.
 
-    A step runs the phases of SPEC rules 1-9 in order: :meth:`_move` (the commanded move under the wall rule),
+    A step runs the rules of docs/environment.md ("One step") as phases, in order: :meth:`_move` (the commanded move
+    under the wall rule),
     :meth:`_perturb` (hazards: gusts and the storm), :meth:`_charge` (energy), :meth:`_cover` (coverage scores),
     :meth:`_link` (connectivity) and :meth:`_reward` (entropy, metrics, rewards), between :meth:`_start_step` (the
     active set) and :meth:`_end_step` (depletion, termination). The hazards enter only through ``hazard_hook``, None
@@ -282,7 +283,7 @@ class UAVCoverageCore:
     # -----------------------------------------------------------------------------------------------------------------
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, bool]:
         """
-        Move every UAV at once (SPEC rules 1-9).
+        Move every UAV at once (docs/environment.md, "One step").
 
         :param actions: (N, 2) array, a_i = (direction, distance ratio) in [0, 1]^2; values outside are clipped
         :return: observations (N, 3, S, S) uint8, rewards (N,) float64, terminated, truncated
@@ -499,7 +500,7 @@ class UAVCoverageCore:
         return np.argwhere(np.triu(self._linked(), k=1))
 
     def metrics(self) -> dict[str, float]:
-        """Team metrics of SPEC 1.5 after the last step: coverage, fairness, energy and energy_efficiency."""
+        """Team metrics after the last step (docs/environment.md, "Metrics"): coverage, fairness, energy, energy_efficiency."""
         return {
             "coverage": self.coverage,
             "fairness": self.fairness,

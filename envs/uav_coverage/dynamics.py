@@ -1,6 +1,6 @@
 """
-How the UAVs move: the commanded displacement (rule 1), the wall rule (rule 3), the energy of a step (rule 4) and
-the radio links between UAVs (rule 6).
+How the UAVs move (docs/environment.md, "One step"): the commanded displacement and the wall rule (step 1), the
+energy of a step (step 2) and the radio links between UAVs (step 4).
 
 Shapes (N UAVs): ``actions`` (N, 2) in [0, 1]^2, ``positions`` (N, 2) float64, ``energy`` (N,) float64, ``active``
 (N,) bool. Every function works on all UAVs at once; none draws random numbers.

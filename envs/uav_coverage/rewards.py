@@ -1,6 +1,6 @@
 """
-What a step is worth: coverage (rule 5), the entropy of the UAVs' cells (rule 7), the team metrics of SPEC 1.5 and
-the two rewards (rule 8).
+What a step is worth (docs/environment.md, "One step" and "Metrics"): coverage (step 3), the entropy of the UAVs'
+cells (step 5), the team metrics and the two rewards (step 6).
 
 Shapes (N UAVs, K PoIs): ``positions`` (N, 2), ``pois`` (K, 2), ``active`` (N,) bool, ``coverage_scores`` (K,) =
 c_t(k), ``covering`` (N, K) bool. Values shared by the team (metrics, entropy, the report's reward) are computed once
@@ -139,7 +139,7 @@ def team_metrics(
     eps: float,
 ) -> tuple[float, float, float, float]:
     """
-    The team metrics of SPEC 1.5 after step t.
+    The team metrics after step t (docs/environment.md, "Metrics").
 
     :param coverage_scores: (K,) c_t(k)
     :param total_energy_spent: the team's energy since reset

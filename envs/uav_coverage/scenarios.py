@@ -14,7 +14,8 @@ the parameters (``reward_mode``, ``position_mark``, ...), so any task's rule can
 - :data:`STORM_V2_TASK`: v1 with :data:`STORM_V2`, the storm task redesigned for a discounted quantile critic
   (``uav_coverage_storm_cpu_v2``): the zone drawn in the observations, frequent strikes that cost at once.
 
-The registered env ids (``sb3_maddpg/zoo/registry.py``) build these scenarios, some at another ``obs_size``.
+The env ids this package registers for ``sb3_maddpg``'s command line (``registration.py``) build these scenarios,
+some at another ``obs_size``.
 """
 
 from __future__ import annotations
@@ -61,17 +62,20 @@ V1_DEFAULTS: dict[str, Any] = {
 
 #: The published setting of Liu et al., "Distributed Energy-Efficient Multi-UAV Navigation for Long-Term Communication
 #: Coverage by Deep Reinforcement Learning", IEEE TMC 19(6), 2020 (docs/results.md, "The published setting"), on v1's
-#: rules: the paper's geometry and energy. The same values as the registry's ``TMC2020_KWARGS`` of
-#: ``uav_coverage_tmc_v1`` (a test keeps them equal), where each is explained.
+#: rules: the paper's geometry and energy, the defaults of ``uav_coverage_tmc_v1``. A step costs hover_energy +
+#: (move_energy * l_max - hover_energy) * rho, so 0.5 hovering and 1.0 for a full move of one cell, and the energy
+#: metric is e_T / (N T * 1.0) as in the paper.
 TMC2020_KWARGS: dict[str, Any] = {
-    "map_size": 10,
-    "n_uavs": 6,
+    "map_size": 10,  # 10 x 10 area, the 100 grid PoIs
+    "n_uavs": 6,  # the paper's default; its sweep is 3 to 8
     "coverage_range": 3.0,
     "comm_range": 5.0,
-    "max_distance": 1.0,
+    "max_distance": 1.0,  # one PoI spacing (inferred from the paper's figures)
     "move_energy": 1.0,
     "hover_energy": 0.5,
     "max_cycles": 500,
+    # 2 pixels per cell: obs_size must be a multiple of map_size, and the CNN (ReportCNN, three 3 x 3 stride-2
+    # convolutions) needs at least 15 x 15 pixels, so 10 (1 pixel per cell) is too small and 20 the smallest that fits.
     "obs_size": 20,
 }
 

@@ -29,12 +29,22 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStac
 from sb3_maddpg.common.callbacks import declared_episode_metrics
 from sb3_maddpg.common.hparams import tensorboard_formats, write_to_tensorboard
 from sb3_maddpg.common.validation import check_int
-from sb3_maddpg.evaluation.task_tools import episode_limit, task_tools
+from sb3_maddpg.evaluation.task_tools import TaskTools, episode_limit, task_tools
 
-IMAGE_TAG = "eval/coverage_map"
+# The picture's tag is eval/<the task's map_name> (image_tag); the video's is the same for every task
+IMAGE_SECTION = "eval"
 VIDEO_TAG = "eval/episode"
 # The picture's size in pixels (width, height): small enough that each evaluation adds tens of kilobytes
 MAP_SIZE_PX = (416, 360)
+
+
+def image_tag(tools: TaskTools) -> str:
+    """
+    :param tools: a task's tools (:func:`~sb3_maddpg.evaluation.task_tools.task_tools` of its env)
+    :return: the TensorBoard tag of the task's picture after an evaluation: ``eval/<map_name>`` (on the UAV envs
+        ``eval/coverage_map``; ``eval/state_image`` for tools that name none)
+    """
+    return f"{IMAGE_SECTION}/{tools.map_name}"
 
 
 @contextlib.contextmanager
@@ -114,11 +124,12 @@ class EvalTensorBoardCallback(BaseCallback):
     Called after each evaluation (``EvalCallback(callback_after_eval=...)``), it writes to TensorBoard, at the
     evaluation's timestep:
 
-    - ``eval/<metric>``: the mean episode-end coverage, fairness, energy, ... of the evaluation's episodes, read from
-      the ``JointEpisodeMonitor`` of the evaluation env, where the env reports them;
-    - ``eval/coverage_map`` (with ``images``): the task's picture (``TaskTools.draw_map``) at the end of one
-      deterministic episode, on a task that can draw itself (on the UAV coverage envs the coverage heat map with the
-      team's positions and links);
+    - ``eval/<metric>``: the mean of each episode metric the env declares (``declared_episode_metrics``: on the UAV
+      envs coverage, fairness, energy, ...) over the evaluation's episodes, read from the ``JointEpisodeMonitor`` of
+      the evaluation env, where the env reports them;
+    - ``eval/<map_name>`` (with ``images``, :func:`image_tag`): the task's picture (``TaskTools.draw_map``) at the end
+      of one deterministic episode, on a task that can draw itself (on the UAV coverage envs ``eval/coverage_map``,
+      the coverage heat map with the team's positions and links);
     - ``eval/episode`` (with ``video``): that episode as an animated GIF (SB3's ``Video`` where moviepy can encode it,
       else the same GIF encoded with Pillow).
 
@@ -127,7 +138,7 @@ class EvalTensorBoardCallback(BaseCallback):
 
     :param make_env: builds the PettingZoo ParallelEnv the pictured episode is played on (the evaluation env's id
         and arguments), or None for no pictures
-    :param images: draw the coverage heat map
+    :param images: draw the task's picture (on the UAV envs the coverage heat map)
     :param video: record the episode as a video
     :param seed: the pictured episode's seed, the same at every evaluation
     :param video_fps: frames per second of the video
@@ -247,7 +258,7 @@ class EvalTensorBoardCallback(BaseCallback):
                 frames.append(tools.draw_frame(env, self.video_size))
         pictures: dict[str, Any] = {}
         if self.images:
-            pictures[IMAGE_TAG] = Image(tools.draw_map(env, MAP_SIZE_PX), "HWC")
+            pictures[image_tag(tools)] = Image(tools.draw_map(env, MAP_SIZE_PX), "HWC")
         if self.video:
             pictures[VIDEO_TAG] = np.stack(frames)
         return pictures

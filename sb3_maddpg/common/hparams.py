@@ -3,8 +3,9 @@ A run's hyperparameters in TensorBoard's HPARAMS tab, through SB3's logger (``st
 so that runs (and Optuna trials trained again with ``train --trial-id``) can be compared by their settings.
 
 TensorBoard shows, for each metric of the tab, the last value of the scalar of that name in the run: the metrics
-named here are the evaluation scalars (``eval/mean_reward``, and on the UAV envs ``eval/coverage`` ... written by
-:class:`~sb3_maddpg.common.eval_tensorboard.EvalTensorBoardCallback`), so the tab shows the final evaluation.
+named here are the evaluation scalars (``eval/mean_reward``, and the episode-end values the env declares, on the UAV
+envs ``eval/coverage`` ... written by :class:`~sb3_maddpg.common.eval_tensorboard.EvalTensorBoardCallback`), so the
+tab shows the final evaluation.
 """
 
 from collections.abc import Mapping, Sequence
@@ -14,16 +15,11 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import HParam, Logger, TensorBoardOutputFormat
 
-# The scalars whose last values the HPARAMS tab shows beside each run's settings; a run without one leaves it blank.
-DEFAULT_METRICS: tuple[str, ...] = (
-    "eval/mean_reward",
-    "eval/mean_ep_length",
-    "eval/coverage",
-    "eval/fairness",
-    "eval/energy",
-    "eval/energy_efficiency",
-    "rollout/ep_rew_mean",
-)
+from sb3_maddpg.common.callbacks import declared_episode_metrics
+
+# The scalars whose last values the HPARAMS tab shows beside each run's settings (a run without one leaves it blank):
+# SB3's evaluation scalars, then the env's episode-end values (``default_metrics``), then the training return.
+DEFAULT_METRICS: tuple[str, ...] = ("eval/mean_reward", "eval/mean_ep_length", "rollout/ep_rew_mean")
 # The model attributes logged when no hyperparameters are given (those an SB3 off-policy algorithm has).
 MODEL_ATTRIBUTES: tuple[str, ...] = (
     "learning_rate",
@@ -101,6 +97,20 @@ def write_to_tensorboard(logger: Logger, values: Mapping[str, Any], step: int) -
         output.write(dict(values), excluded, step)
 
 
+def default_metrics(env: object) -> tuple[str, ...]:
+    """
+    The HPARAMS tab's metrics for a run on this env: :data:`DEFAULT_METRICS` with, before the training return, the
+    evaluation's mean of each episode-end value the env declares (``declared_episode_metrics``, the per-agent counts
+    left out: on the UAV envs ``eval/coverage``, ``eval/fairness``, ``eval/energy``, ``eval/energy_efficiency``).
+
+    :param env: the model's VecEnv (or None)
+    :return: the scalar tags
+    """
+    keys, per_agent_keys = declared_episode_metrics(env)
+    values = tuple(f"eval/{key}" for key in keys if key not in per_agent_keys)
+    return (*DEFAULT_METRICS[:-1], *values, DEFAULT_METRICS[-1])
+
+
 class HParamsCallback(BaseCallback):
     """
     Logs the run's hyperparameters once, when training starts, as SB3's ``HParamCallback`` example does; TensorBoard's
@@ -110,18 +120,20 @@ class HParamsCallback(BaseCallback):
     :param hyperparams: name -> value (e.g. an RL Zoo entry with the env and the seed); by default the algorithm's
         name and the model's ``learning_rate``, ``gamma``, ``tau``, ``batch_size``... where it has them. Dict values
         give one entry per key (``env_kwargs/n_uavs``).
-    :param metrics: the scalar tags shown as metrics (default: ``DEFAULT_METRICS``)
+    :param metrics: the scalar tags shown as metrics (default: :func:`default_metrics` of the model's env)
     :param verbose: verbosity level
     """
 
     def __init__(
-        self, hyperparams: Mapping[str, Any] | None = None, metrics: Sequence[str] = DEFAULT_METRICS, verbose: int = 0
+        self, hyperparams: Mapping[str, Any] | None = None, metrics: Sequence[str] | None = None, verbose: int = 0
     ) -> None:
         super().__init__(verbose)
-        if isinstance(metrics, str) or not metrics or not all(isinstance(metric, str) for metric in metrics):
+        if metrics is not None and (
+            isinstance(metrics, str) or not metrics or not all(isinstance(metric, str) for metric in metrics)
+        ):
             raise TypeError(f"metrics must be a non-empty sequence of scalar tags, e.g. {DEFAULT_METRICS[:2]}, got {metrics}")
         self.hyperparams = None if hyperparams is None else flat_hparams(hyperparams)
-        self.metrics = tuple(metrics)
+        self.metrics = None if metrics is None else tuple(metrics)
 
     def model_hyperparams(self) -> dict[str, float | int | str]:
         """
@@ -146,6 +158,8 @@ class HParamsCallback(BaseCallback):
     def _on_training_start(self) -> None:
         if not tensorboard_formats(self.logger):
             return
+        if self.metrics is None:
+            self.metrics = default_metrics(self.model.get_env())
         # The values of metric_dict are not shown: TensorBoard reads each metric from the run's scalar of that name.
         hparam = HParam(self.model_hyperparams(), dict.fromkeys(self.metrics, 0.0))
         write_to_tensorboard(self.logger, {"hparams": hparam}, self.num_timesteps)

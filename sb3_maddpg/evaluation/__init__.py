@@ -1,11 +1,11 @@
 """
-Evaluation of trained models and baselines on multi-agent envs; a task adds its own baselines and figures through
-its env's ``task_tools`` (:class:`TaskTools`).
+Evaluation of trained models and baselines on multi-agent envs; a task adds its own baselines, figures and the way its
+metrics are shown through its env's ``task_tools`` (:class:`TaskTools`), its metrics through its env's ``metadata``
+(:func:`task_metrics`).
 """
 
 from sb3_maddpg.evaluation.baselines import Controller, ModelController, RandomController, TeamController, make_baselines
 from sb3_maddpg.evaluation.evaluate import (
-    METRICS,
     evaluate_controllers,
     format_table,
     run_episode,
@@ -14,21 +14,21 @@ from sb3_maddpg.evaluation.evaluate import (
     write_results,
 )
 from sb3_maddpg.evaluation.figures import (
-    plot_fairness_vs_coverage,
-    plot_fairness_vs_efficiency,
+    plot_metric_pair,
     plot_metrics_vs_episode,
     plot_returns_vs_episode,
-    plot_training_logs,
+    plot_task_figures,
     save_episode_figures,
 )
-from sb3_maddpg.evaluation.report import evaluate_and_report, find_run_config
+from sb3_maddpg.evaluation.metrics import TaskMetrics, task_metrics
+from sb3_maddpg.evaluation.report import evaluate_and_report, find_run_config, plot_training_logs
 from sb3_maddpg.evaluation.task_tools import TaskTools, task_tools
 
 __all__ = [
-    "METRICS",
     "Controller",
     "ModelController",
     "RandomController",
+    "TaskMetrics",
     "TaskTools",
     "TeamController",
     "evaluate_and_report",
@@ -36,14 +36,15 @@ __all__ = [
     "find_run_config",
     "format_table",
     "make_baselines",
-    "plot_fairness_vs_coverage",
-    "plot_fairness_vs_efficiency",
+    "plot_metric_pair",
     "plot_metrics_vs_episode",
     "plot_returns_vs_episode",
+    "plot_task_figures",
     "plot_training_logs",
     "run_episode",
     "save_episode_figures",
     "summarize",
+    "task_metrics",
     "task_tools",
     "worst_decile",
     "write_results",

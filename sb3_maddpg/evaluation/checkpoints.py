@@ -57,8 +57,9 @@ def select_checkpoint(
     (the final model) on the test episodes.
 
     :param model_paths: the models to choose from, in training order, the final model last (``run_checkpoints``)
-    :param metric: the per-episode metric to maximise (``evaluate``'s keys: ``energy_efficiency`` (η_T),
-        ``coverage``, ``return``, ...); None: ``energy_efficiency`` where the env reports it, else the team return
+    :param metric: the per-episode metric to maximise (``evaluate``'s keys: ``return``, the task's metrics, on the UAV
+        envs ``energy_efficiency`` (η_T), ``coverage``, ...); None: the task's ``selection_metric`` where the episodes
+        report it (``TaskTools``; on the UAV envs ``energy_efficiency``), else the team return
     :param validation_episodes: episodes each model is scored on
     :param validation_seed: seed of the first validation episode (episode e: seed + e)
     :param test_episodes: episodes the chosen and the final model are reported on
@@ -95,7 +96,8 @@ def select_checkpoint(
         for path in model_paths:
             episodes = run(path, validation_episodes, validation_seed)
             if metric is None:
-                metric = "energy_efficiency" if "energy_efficiency" in episodes[0] else "return"
+                preferred = target.metrics.selection_metric
+                metric = preferred if preferred is not None and preferred in episodes[0] else "return"
             if metric not in episodes[0]:
                 raise ValueError(f"metric {metric!r} is not reported by {env_id}; it reports {sorted(episodes[0])}")
             scores.append((Path(path), sum(episode[metric] for episode in episodes) / len(episodes)))
@@ -114,7 +116,7 @@ def select_checkpoint(
         "final": final,
         "metric": metric,
         "summary": summary,
-        "table": format_table(summary),
+        "table": format_table(summary, target.metrics),
         "env_id": env_id,
         "env_kwargs": kwargs,
     }

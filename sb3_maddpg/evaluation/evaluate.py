@@ -1,7 +1,8 @@
 """
 Run controllers for whole episodes of a multi-agent env and summarise them: the team return (the sum of the agents'
-rewards), each agent's return (``return_<agent>``), the length, and the UAV envs' episode-end metrics where the env
-reports them.
+rewards), each agent's return (``return_<agent>``), the length, and the episode metrics of the env's task
+(:func:`~sb3_maddpg.evaluation.metrics.task_metrics`: those its ``metadata`` declares, and the event counts its tools
+name) where the env reports them.
 """
 
 import contextlib
@@ -19,30 +20,14 @@ from pettingzoo import ParallelEnv
 from sb3_maddpg.common.atomic import atomic_open, atomic_write_text
 from sb3_maddpg.common.callbacks import team_returns
 from sb3_maddpg.evaluation.baselines import Controller
+from sb3_maddpg.evaluation.metrics import TaskMetrics, task_metrics
 
-# The report's metrics at the last step of an episode (SPEC §1.5): c_T, f_T, e_T, eta_T.
-METRICS: tuple[str, ...] = ("coverage", "fairness", "energy", "energy_efficiency")
+# The table's column headers of what every env has; a task's metrics are headed as its tools say (TaskMetrics.symbol)
 METRIC_SYMBOLS: dict[str, str] = {
-    "coverage": "c_T",
-    "fairness": "f_T",
-    "energy": "e_T",
-    "energy_efficiency": "eta_T",
     "return": "team return",
     "return_worst_decile": "worst 10 % team return",
     "length": "length",
-    "gusts": "gusts",
-    "crashes": "crashes",
-    "link_failures": "link failures",
-    "depletions": "depletions",
-    "zone_steps": "zone steps",
-    "zone_losses": "zone losses",
 }
-# Also kept per episode (team totals), not part of the summary table.
-COUNTS: tuple[str, ...] = ("wall_hits", "disconnections")
-# Hazard events per episode (team totals), reported by the UAV envs with a hazard switched on (gusts, link failures)
-# and by risky_reach_v0 (steps in its risky zone, losses taken there);
-# the summary table shows them where the env reports them.
-HAZARD_COUNTS: tuple[str, ...] = ("gusts", "crashes", "link_failures", "depletions", "zone_steps", "zone_losses")
 
 
 @dataclass
@@ -70,6 +55,7 @@ def run_episode(
     record: EpisodeRecord | None = None,
     state_steps: Sequence[int] = (),
     frame_every: int = 1,
+    metrics: TaskMetrics | None = None,
 ) -> dict[str, float]:
     """
     Play one episode to its end.
@@ -80,11 +66,15 @@ def run_episode(
     :param record: if given, filled with frames, state images and the env
     :param state_steps: steps at which to keep the state image and the rendered frame (0 = after reset)
     :param frame_every: keep one rendered frame every this many steps
-    :return: the episode-end metrics (``coverage``, ``fairness``, ``energy``, ``energy_efficiency``) and the team's
-        ``wall_hits`` and ``disconnections`` where the env reports them, the team ``return`` (sum over agents and
-        steps), each agent's return ``return_<agent>``, each team's ``return_team_<team>`` where the agents' names
-        make several teams, and ``length``
+    :param metrics: the task's episode metrics (default: :func:`~sb3_maddpg.evaluation.metrics.task_metrics` of
+        ``env``)
+    :return: the task's episode metrics where the env reports them (``metrics.keys``: an episode-end value from the
+        first agent's info, an event count summed over the agents'), the team ``return`` (sum over agents and steps),
+        each agent's return ``return_<agent>``, each team's ``return_team_<team>`` where the agents' names make
+        several teams, and ``length``
     """
+    if metrics is None:
+        metrics = task_metrics(env)
     observations, infos = env.reset(seed=seed)
     controller.reset(env, seed=seed)
     wanted = set(state_steps)
@@ -120,17 +110,18 @@ def run_episode(
         record.env = env
 
     last_infos = list(infos.values()) or [{}]
-    metrics = {key: float(last_infos[0][key]) for key in METRICS if key in last_infos[0]}
-    for key in (*COUNTS, *HAZARD_COUNTS):
+    episode: dict[str, float] = {}
+    for key in metrics.keys:
         if key in last_infos[0]:
-            metrics[key] = float(sum(info.get(key, 0) for info in last_infos))
-    metrics["return"] = float(sum(agent_returns.values()))
-    metrics.update({f"return_{agent}": value for agent, value in agent_returns.items()})
+            summed = key in metrics.summed
+            episode[key] = float(sum(info.get(key, 0) for info in last_infos)) if summed else float(last_infos[0][key])
+    episode["return"] = float(sum(agent_returns.values()))
+    episode.update({f"return_{agent}": value for agent, value in agent_returns.items()})
     teams = team_returns(agent_returns)
     if len(teams) > 1:  # competing teams (MPE2's adversaries and good agents): each team's return
-        metrics.update({f"return_team_{team}": value for team, value in teams.items()})
-    metrics["length"] = float(step)
-    return metrics
+        episode.update({f"return_team_{team}": value for team, value in teams.items()})
+    episode["length"] = float(step)
+    return episode
 
 
 def evaluate_controllers(
@@ -167,17 +158,18 @@ def evaluate_controllers(
         env = make_env()
         episodes = []
         try:
+            task = task_metrics(env)
             for episode in range(n_episodes):
                 this_record = None
                 if record is None and controller.name == record_controller:
                     this_record = record = EpisodeRecord()
-                metrics = run_episode(env, controller, seed + episode, this_record, state_steps, frame_every)
+                metrics = run_episode(env, controller, seed + episode, this_record, state_steps, frame_every, task)
                 episodes.append(metrics)
                 if on_episode is not None:
                     on_episode()
                 if verbose:
                     values = "  ".join(
-                        f"{METRIC_SYMBOLS.get(key, key)}={metrics[key]:.4f}" for key in _table_keys(metrics) if key in metrics
+                        f"{_symbol(key, task)}={metrics[key]:.4f}" for key in _table_keys(metrics, task) if key in metrics
                     )
                     print(f"{controller.name} episode {episode + 1}/{n_episodes}: {values}")
         finally:
@@ -221,17 +213,23 @@ def summarize(results: dict[str, list[dict[str, float]]]) -> list[dict[str, Any]
     return rows
 
 
-def format_table(summary: Sequence[dict[str, Any]]) -> str:
+def format_table(summary: Sequence[dict[str, Any]], metrics: TaskMetrics | None = None) -> str:
     """
-    The summary as a Markdown table of ``mean ± std``: the UAV metrics c_T, f_T, e_T, eta_T where the env has them,
-    the team return, its worst decile (the mean of the worst 10 % of the episodes), the episode length and the hazard
-    events per episode where the env reports them (each agent's return is in the files).
+    The summary as a Markdown table of ``mean ± std``: the task's episode-end values where the env has them (on the UAV
+    envs c_T, f_T, e_T, eta_T), the team return, its worst decile (the mean of the worst 10 % of the episodes), the
+    episode length and the task's event counts per episode where the env reports them (each agent's return is in
+    the files).
 
     :param summary: rows from :func:`summarize`
+    :param metrics: the task's metrics (:func:`~sb3_maddpg.evaluation.metrics.task_metrics` of its env); None: every
+        metric of the summary other than the returns and the length is shown after the length, headed by its name
     :return: the table
     """
-    keys = _table_keys({key[: -len("_mean")]: None for key in summary[0] if key.endswith("_mean")})
-    header = ["method", "episodes", *(METRIC_SYMBOLS.get(key, key) for key in keys)]
+    present = {key[: -len("_mean")]: None for key in summary[0] if key.endswith("_mean")}
+    if metrics is None:
+        metrics = TaskMetrics(table_counts=tuple(key for key in present if not key.startswith("return") and key != "length"))
+    keys = _table_keys(present, metrics)
+    header = ["method", "episodes", *(_symbol(key, metrics) for key in keys)]
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     for row in summary:
         cells = [str(row["method"]), str(row["episodes"])]
@@ -243,16 +241,23 @@ def format_table(summary: Sequence[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def _table_keys(metrics: dict[str, Any]) -> list[str]:
+def _table_keys(metrics: dict[str, Any], task: TaskMetrics) -> list[str]:
     """
-    The keys of the printed table, in order: the UAV metrics present, the team return, its worst decile and each
-    competing team's return, the length and the hazard events present.
+    The keys of the printed table, in order: the task's episode-end values present, the team return, its worst decile
+    and each competing team's return, the length and the task's event counts present.
     """
-    keys = [key for key in (*METRICS, "return", "length", *HAZARD_COUNTS) if key in metrics]
+    keys = [key for key in (*task.values, "return", "length", *task.table_counts) if key in metrics]
     if "return" in keys:
         teams = [key for key in metrics if key.startswith("return_team_")]
         keys[keys.index("return") + 1 : keys.index("return") + 1] = ["return_worst_decile", *teams]
     return keys
+
+
+def _symbol(key: str, task: TaskMetrics) -> str:
+    """The table's column header of a key: the library's for the returns and the length, the task's for its metrics."""
+    if key in METRIC_SYMBOLS:
+        return METRIC_SYMBOLS[key]
+    return task.symbol(key) if key in task.keys or key in task.table_counts else key
 
 
 def write_results(
@@ -260,6 +265,7 @@ def write_results(
     results: dict[str, list[dict[str, float]]],
     summary: Sequence[dict[str, Any]],
     metadata: dict[str, Any] | None = None,
+    metrics: TaskMetrics | None = None,
 ) -> dict[str, Path]:
     """
     Write ``results.csv`` (the summary), ``results.json`` (summary, per-episode values and ``metadata``),
@@ -269,6 +275,7 @@ def write_results(
     :param results: controller name -> per-episode metrics
     :param summary: rows from :func:`summarize`
     :param metadata: what produced the results (command, env kwargs, model path, seed)
+    :param metrics: the task's metrics, for the table (:func:`format_table`)
     :return: name -> path of each file written
     """
     out = Path(out_dir)
@@ -290,7 +297,7 @@ def write_results(
 
     payload = {"metadata": metadata or {}, "summary": list(summary), "episodes": results}
     atomic_write_text(paths["results.json"], json.dumps(payload, indent=2, default=_to_json))
-    atomic_write_text(paths["results.md"], format_table(summary) + "\n")
+    atomic_write_text(paths["results.md"], format_table(summary, metrics) + "\n")
     return paths
 
 

@@ -1,7 +1,9 @@
 """
-The report's figures: fairness against coverage, fairness against energy efficiency, each metric against episode
-(from evaluation results or from a training run's logs), state images, an episode GIF and the task's own figures
-(on the UAV envs the coverage heat map).
+The evaluation's figures: the returns and each of the task's episode-end values against episode, pairs of them
+against each other (on the UAV envs fairness against coverage and against energy efficiency, the report's), from
+evaluation results or from a training run's logs; state images, an episode GIF and the task's own figures (on the UAV
+envs the coverage heat map). Which metrics a task has and how they are labelled is its own
+(:class:`~sb3_maddpg.evaluation.metrics.TaskMetrics`).
 
 Matplotlib is imported with the Agg backend only when a figure is drawn, so no display is needed.
 """
@@ -10,23 +12,19 @@ import csv
 import glob
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sb3_maddpg.common.atomic import atomic_path
-from sb3_maddpg.evaluation.evaluate import METRICS, EpisodeRecord
+from sb3_maddpg.evaluation.evaluate import EpisodeRecord
+from sb3_maddpg.evaluation.metrics import TaskMetrics, metric_name
 from sb3_maddpg.evaluation.task_tools import task_tools
 
+# The axis labels of what every env has; a task's metrics are labelled as its tools say (TaskMetrics.label)
 LABELS: dict[str, str] = {
-    "coverage": "coverage $c_T$",
-    "fairness": "fairness $f_T$",
-    "energy": "energy $\\bar{e}_T$",
-    "energy_efficiency": "energy efficiency $\\eta_T$",
-    "wall_hits": "wall hits",
-    "disconnections": "disconnections",
     "r": "team return",
     "return": "team return",
     "length": "episode length",
@@ -57,15 +55,46 @@ def series_from_results(results: dict[str, list[dict[str, float]]]) -> dict[str,
     return series
 
 
-def _scatter(series: dict[str, Series], x_key: str, y_key: str, path: str | os.PathLike, title: str) -> Path:
+def pair_file_name(x_key: str, y_key: str) -> str:
+    """:return: the file name of the figure of ``y_key`` against ``x_key``: ``<y>_vs_<x>.png``"""
+    return f"{y_key}_vs_{x_key}.png"
+
+
+def pair_title(x_key: str, y_key: str, episodes: str) -> str:
+    """:return: the title of the figure of ``y_key`` against ``x_key``, e.g. ``Fairness vs coverage (episode end)``"""
+    name = metric_name(y_key)
+    return f"{name[:1].upper()}{name[1:]} vs {metric_name(x_key)} ({episodes})"
+
+
+def plot_metric_pair(
+    series: dict[str, Series],
+    x_key: str,
+    y_key: str,
+    path: str | os.PathLike,
+    title: str | None = None,
+    labels: Mapping[str, str] | None = None,
+) -> Path:
+    """
+    One episode-end metric against another, one point per episode (on the UAV envs fairness against coverage, the
+    report's figure 6.5, and against energy efficiency, its figure 6.6).
+
+    :param series: name -> metric -> per-episode values
+    :param x_key: the metric on the x axis
+    :param y_key: the metric on the y axis
+    :param path: output image file
+    :param title: figure title (default: :func:`pair_title` of the episodes' end)
+    :param labels: axis labels by metric (default: the metric's name, :func:`~sb3_maddpg.evaluation.metrics.metric_name`)
+    :return: the path written
+    """
+    labels = {**LABELS, **(labels or {})}
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(5.5, 4.5))
     for name, values in series.items():
         if x_key in values and y_key in values and len(values[x_key]):
             ax.scatter(values[x_key], values[y_key], s=14, alpha=0.7, label=name)
-    ax.set_xlabel(LABELS[x_key])
-    ax.set_ylabel(LABELS[y_key])
-    ax.set_title(title)
+    ax.set_xlabel(labels.get(x_key, metric_name(x_key)))
+    ax.set_ylabel(labels.get(y_key, metric_name(y_key)))
+    ax.set_title(title or pair_title(x_key, y_key, "episode end"))
     ax.grid(alpha=0.3)
     if len(series) > 1:
         ax.legend(fontsize="small")
@@ -76,28 +105,43 @@ def _scatter(series: dict[str, Series], x_key: str, y_key: str, path: str | os.P
     return Path(path)
 
 
-def plot_fairness_vs_coverage(series: dict[str, Series], path: str | os.PathLike, title: str | None = None) -> Path:
+def plot_task_figures(
+    series: dict[str, Series],
+    out_dir: str | os.PathLike,
+    metrics: TaskMetrics,
+    x_label: str = "episode",
+    window: int = 1,
+    prefix: str = "",
+    episodes: str = "episode end",
+) -> list[Path]:
     """
-    Fairness against coverage, one point per episode (the report's figure 6.5).
+    The figures of a task's episode-end values, where every series has them all: each of the task's pairs
+    (:func:`plot_metric_pair`, ``<prefix><y>_vs_<x>.png``) and each value against episode (:func:`plot_metrics_vs_episode`,
+    ``<prefix>metrics_vs_episode.png``).
 
     :param series: name -> metric -> per-episode values
-    :param path: output image file
-    :param title: figure title
-    :return: the path written
+    :param out_dir: the folder written into
+    :param metrics: the task's metrics
+    :param x_label: label of the x axis of the metrics-vs-episode figure
+    :param window: moving-average window of the metrics-vs-episode curves
+    :param prefix: prefix of the file names
+    :param episodes: what the pairs' titles call the episodes (``Fairness vs coverage (episode end)``)
+    :return: the paths written, none where the task has no episode-end values or a series lacks one (or has only
+        empty values of it, as a monitor file's empty cells)
     """
-    return _scatter(series, "coverage", "fairness", path, title or "Fairness vs coverage (episode end)")
-
-
-def plot_fairness_vs_efficiency(series: dict[str, Series], path: str | os.PathLike, title: str | None = None) -> Path:
-    """
-    Fairness against energy efficiency, one point per episode (the report's figure 6.6).
-
-    :param series: name -> metric -> per-episode values
-    :param path: output image file
-    :param title: figure title
-    :return: the path written
-    """
-    return _scatter(series, "energy_efficiency", "fairness", path, title or "Fairness vs energy efficiency (episode end)")
+    if not metrics.values or not all(
+        key in values and not np.all(np.isnan(values[key])) for values in series.values() for key in metrics.values
+    ):
+        return []
+    out = Path(out_dir)
+    labels = {key: metrics.label(key) for key in metrics.keys}
+    paths = [
+        plot_metric_pair(series, x, y, out / f"{prefix}{pair_file_name(x, y)}", pair_title(x, y, episodes), labels)
+        for x, y in metrics.pairs
+    ]
+    path = out / f"{prefix}metrics_vs_episode.png"
+    paths.append(plot_metrics_vs_episode(series, path, metrics.values, x_label, window, labels=labels))
+    return paths
 
 
 def _moving_average(values: np.ndarray, window: int) -> np.ndarray:
@@ -110,22 +154,27 @@ def _moving_average(values: np.ndarray, window: int) -> np.ndarray:
 def plot_metrics_vs_episode(
     series: dict[str, Series],
     path: str | os.PathLike,
-    metrics: Sequence[str] = METRICS,
+    metrics: Sequence[str] | None = None,
     x_label: str = "episode",
     window: int = 1,
     title: str | None = None,
+    labels: Mapping[str, str] | None = None,
 ) -> Path:
     """
-    Each metric against episode (the report's figure 6.7 for fairness), one panel per metric.
+    Each metric against episode (on the UAV envs the report's figure 6.7 for fairness), one panel per metric.
 
     :param series: name -> metric -> per-episode values (an optional ``"x"`` entry gives the x values)
     :param path: output image file
-    :param metrics: the metrics to draw, one panel each
+    :param metrics: the metrics to draw, one panel each (default: every metric of the series, in order)
     :param x_label: label of the x axis
     :param window: moving-average window drawn over the raw values (1: none)
     :param title: figure title
+    :param labels: y-axis labels by metric, over the library's own (``LABELS``; default: the metric's key)
     :return: the path written
     """
+    if metrics is None:
+        metrics = list({key: None for values in series.values() for key in values if key != "x"})
+    labels = {**LABELS, **(labels or {})}
     plt = _pyplot()
     from matplotlib.ticker import MaxNLocator
 
@@ -145,7 +194,7 @@ def plot_metrics_vs_episode(
                 (line,) = ax.plot(x, y, alpha=0.25)
                 ax.plot(x[window - 1 :], smooth, color=line.get_color(), label=f"{name} (mean of {window})")
         ax.set_xlabel(x_label)
-        ax.set_ylabel(LABELS.get(metric, metric))
+        ax.set_ylabel(labels.get(metric, metric))
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(alpha=0.3)
     for ax in axes.ravel()[len(metrics) :]:
@@ -292,7 +341,14 @@ def load_monitor_series(monitor_file: str | os.PathLike) -> Series:
     return {key: values[:, column] for column, key in enumerate(header)}
 
 
-def load_tensorboard_series(log_path: str | os.PathLike, prefix: str = "rollout") -> Series:
+# Scalars of the rollout section that are SB3's own episode statistics (and the library's per-agent and per-team
+# returns, ``ep_rew_<agent>``), not an env's episode metric
+_SB3_ROLLOUT_SCALARS = ("success_rate", "exploration_rate")
+
+
+def load_tensorboard_series(
+    log_path: str | os.PathLike, prefix: str = "rollout", metrics: Sequence[str] | None = None
+) -> Series:
     """
     Read the episode metrics logged by ``EpisodeMetricsCallback`` from TensorBoard event files (means over the
     episodes between two dumps, against timesteps), or where there are none (envs without them) SB3's
@@ -300,6 +356,8 @@ def load_tensorboard_series(log_path: str | os.PathLike, prefix: str = "rollout"
 
     :param log_path: a folder holding event files (searched recursively)
     :param prefix: logger section of the metrics
+    :param metrics: the metrics to read (the task's episode-end values); None: every scalar of the section but SB3's
+        episode statistics (``ep_*``, ``success_rate``, ``exploration_rate``)
     :return: metric name -> values, and ``"x"``: the timesteps; empty if nothing was found
     """
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
@@ -310,7 +368,12 @@ def load_tensorboard_series(log_path: str | os.PathLike, prefix: str = "rollout"
         accumulator = EventAccumulator(event_file, size_guidance={"scalars": 0})
         accumulator.Reload()
         tags = accumulator.Tags().get("scalars", [])
-        for metric in (*METRICS, "wall_hits", "disconnections"):
+        if metrics is None:
+            section = [tag.split("/", 1)[1] for tag in tags if tag.startswith(f"{prefix}/")]
+            wanted = [name for name in section if not name.startswith("ep_") and name not in _SB3_ROLLOUT_SCALARS]
+        else:
+            wanted = list(metrics)
+        for metric in wanted:
             tag = f"{prefix}/{metric}"
             if tag in tags:
                 events = accumulator.Scalars(tag)
@@ -327,61 +390,7 @@ def load_tensorboard_series(log_path: str | os.PathLike, prefix: str = "rollout"
     return series
 
 
-def _monitor_returns(series: Series) -> Series:
+def monitor_returns(series: Series) -> Series:
     """A monitor's columns under the names of the evaluation: r -> return, r_<agent> -> return_<agent>, l -> length."""
     renamed = {"r": "return", "l": "length"}
     return {renamed.get(key, "return_" + key[2:] if key.startswith("r_") else key): values for key, values in series.items()}
-
-
-def plot_training_logs(
-    log_path: str | os.PathLike, out_dir: str | os.PathLike, window: int | None = None, name: str = "training"
-) -> list[Path]:
-    """
-    The training figures from a run's logs, for any env: the team return, each agent's return and the episode length
-    vs episode (``train_returns_vs_episode.png``); for envs with the UAV metrics, the report's fairness vs coverage,
-    fairness vs energy efficiency and each metric vs episode. Reads the run's ``monitor.csv`` (one point per episode)
-    or, failing that, its TensorBoard event files (one point per logger dump, against timesteps).
-
-    :param log_path: an RL Zoo run folder, a ``monitor.csv`` file, or a TensorBoard log folder
-    :param out_dir: output folder (created)
-    :param window: moving-average window of the metric-vs-episode curves (default: about a twentieth of the run)
-    :param name: series label
-    :return: the paths written
-    :raises FileNotFoundError: if no log with the metrics is found
-    :raises NotAMonitorFileError: if a monitor file found is not a text CSV file
-    """
-    out = Path(out_dir)
-    series: Series = {}
-    x_label = "episode"
-    for monitor_file in find_monitor_files(log_path):
-        candidate = load_monitor_series(monitor_file)
-        if candidate.get("r") is not None and len(candidate["r"]):
-            series = _monitor_returns(candidate)
-            break
-    if not series and Path(log_path).is_dir():
-        series = load_tensorboard_series(log_path)
-        x_label = "timesteps"
-    if not series:
-        raise FileNotFoundError(
-            f"no training log under {log_path} (expected a monitor.csv from `python -m sb3_maddpg train` or "
-            "TensorBoard events with rollout/ep_rew_mean)"
-        )
-    out.mkdir(parents=True, exist_ok=True)
-    n = len(next(values for key, values in series.items() if key != "x"))
-    if window is None:
-        window = max(1, n // 20)
-    runs = {name: series}
-    paths = []
-    if "return" in series:
-        paths.append(plot_returns_vs_episode(runs, out / "train_returns_vs_episode.png", x_label=x_label, window=window))
-    if not np.all(np.isnan(series.get("coverage", np.array([np.nan])))):
-        paths += [
-            plot_fairness_vs_coverage(
-                runs, out / "train_fairness_vs_coverage.png", "Fairness vs coverage (training episodes)"
-            ),
-            plot_fairness_vs_efficiency(
-                runs, out / "train_fairness_vs_energy_efficiency.png", "Fairness vs energy efficiency (training episodes)"
-            ),
-            plot_metrics_vs_episode(runs, out / "train_metrics_vs_episode.png", x_label=x_label, window=window),
-        ]
-    return paths

@@ -1,9 +1,12 @@
-"""Evaluate a trained model against the baselines and write the table, the results files and the figures."""
+"""
+Evaluate a trained model against the baselines and write the table, the results files and the figures; draw the
+training figures from a run's logs.
+"""
 
 import os
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from numbers import Integral
 from pathlib import Path
 from typing import Any
@@ -13,19 +16,21 @@ import yaml
 from sb3_maddpg.common.agent_spaces import read_agent_spaces
 from sb3_maddpg.common.atomic import check_writable_folder
 from sb3_maddpg.evaluation.baselines import Controller, ModelController, RandomController, TeamController, make_baselines
-from sb3_maddpg.evaluation.evaluate import METRICS, evaluate_controllers, format_table, summarize, write_results
+from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
 from sb3_maddpg.evaluation.figures import (
-    plot_fairness_vs_coverage,
-    plot_fairness_vs_efficiency,
-    plot_metrics_vs_episode,
+    Series,
+    find_monitor_files,
+    load_monitor_series,
+    load_tensorboard_series,
+    monitor_returns,
     plot_returns_vs_episode,
+    plot_task_figures,
     save_episode_figures,
     series_from_results,
 )
+from sb3_maddpg.evaluation.metrics import TaskMetrics, task_metrics
 from sb3_maddpg.evaluation.progress import episode_progress
 from sb3_maddpg.evaluation.task_tools import TaskTools, episode_limit, task_tools
-
-DEFAULT_ENV_ID = "uav_coverage_v0"
 
 
 class ModelEnvMismatchError(ValueError):
@@ -234,6 +239,7 @@ class EvaluationEnv:
     :param tools: what its task offers beyond the PettingZoo API (:func:`~sb3_maddpg.evaluation.task_tools.task_tools`)
     :param render_mode: ``"rgb_array"`` where the env renders to arrays, else None
     :param max_cycles: the most steps an episode has, or None if the env does not say
+    :param metrics: its task's episode metrics (:func:`~sb3_maddpg.evaluation.metrics.task_metrics`)
     """
 
     env_id: str
@@ -241,6 +247,7 @@ class EvaluationEnv:
     tools: TaskTools
     render_mode: str | None
     max_cycles: int | None
+    metrics: TaskMetrics = field(default_factory=TaskMetrics)
 
 
 def evaluation_env(
@@ -252,15 +259,16 @@ def evaluation_env(
     (``TaskTools.evaluation_kwargs``: on the UAV envs a new start at random places every episode). One env is made to
     find out what it is.
 
-    :param model_path: the model whose run gives the env (None: ``env_id``, else ``uav_coverage_v0``)
+    :param model_path: the model whose run gives the env (None: ``env_id``, else the registry's
+        ``DEFAULT_EVALUATION_ENV_ID``)
     :param env_id: the env; by default the run's
     :param env_kwargs: env arguments over the run's
     :raises ValueError: for an env id that is not a registered multi-agent env
     """
-    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
+    from sb3_maddpg.zoo.registry import DEFAULT_EVALUATION_ENV_ID, MULTIAGENT_ENVS, make_multiagent_env
 
     run_env_id, run_env_kwargs = (None, {}) if model_path is None else find_run_config(model_path)
-    env_id = env_id or run_env_id or DEFAULT_ENV_ID
+    env_id = env_id or run_env_id or DEFAULT_EVALUATION_ENV_ID
     if env_id not in MULTIAGENT_ENVS:
         raise ValueError(f"unknown env {env_id!r}; registered multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
     kwargs = {**run_env_kwargs, **(env_kwargs or {})}
@@ -270,12 +278,13 @@ def evaluation_env(
         tools = task_tools(probe)
         render_mode = "rgb_array" if "rgb_array" in probe.metadata.get("render_modes", []) else None
         max_cycles = episode_limit(probe)
+        metrics = task_metrics(probe)
     finally:
         probe.close()
     if tools.evaluation_kwargs:
         kwargs = {**run_env_kwargs, **tools.evaluation_kwargs, **(env_kwargs or {})}
         kwargs.pop("render_mode", None)
-    return EvaluationEnv(env_id, kwargs, tools, render_mode, max_cycles)
+    return EvaluationEnv(env_id, kwargs, tools, render_mode, max_cycles, metrics)
 
 
 def _load_controller(model_path: str | os.PathLike, env_id: str, env_kwargs: dict[str, Any], device: str) -> ModelController:
@@ -312,12 +321,14 @@ def evaluate_and_report(
     Any registered multi-agent env: team return, each agent's return and the episode length, against random actions
     (``returns_vs_episode.png``, and the GIF where the env renders to arrays). A task adds what its env's tools offer
     (:mod:`~sb3_maddpg.evaluation.task_tools`): on the UAV envs, with ``start="random"``, the greedy baselines, the
-    state images and the coverage heat map; and where the env reports c_T, f_T, e_T, eta_T, the report's figures.
+    state images and the coverage heat map; and where the env declares episode-end metrics, their columns and
+    figures (:func:`~sb3_maddpg.evaluation.figures.plot_task_figures`: on the UAV envs c_T, f_T, e_T, eta_T and the
+    report's figures).
 
     :param out_dir: output folder
     :param n_episodes: episodes per method
     :param model_path: a saved MADDPG model; None to evaluate the baselines only
-    :param env_id: the env id; by default the model's run's, else ``uav_coverage_v0``
+    :param env_id: the env id; by default the model's run's, else the registry's ``DEFAULT_EVALUATION_ENV_ID``
     :param env_kwargs: env arguments over the model's training ones and the task's ``evaluation_kwargs`` (on the UAV
         envs ``start`` is ``"random"`` unless given here)
     :param seed: seed of the first episode (episode e uses seed + e for every method)
@@ -335,7 +346,8 @@ def evaluate_and_report(
         the same opponent. None: the model acts for every agent
     :param opponent: with ``team``: ``"random"``, or a saved model (.zip) that acts for the other agents
     :param progress: draw a progress bar of the episodes, with the time left, on stderr
-    :return: ``summary``, ``results``, ``table``, ``files`` (name -> path) and ``env_kwargs``
+    :return: ``summary``, ``results``, ``table``, ``files`` (name -> path), ``env_kwargs`` and ``metrics`` (the
+        task's, :class:`~sb3_maddpg.evaluation.metrics.TaskMetrics`)
     :raises ModelEnvMismatchError: if the model does not fit the env (``OpponentEnvMismatchError``: the opponent)
     """
     from sb3_maddpg.zoo.registry import make_multiagent_env
@@ -391,7 +403,7 @@ def evaluate_and_report(
             on_episode=advance,
         )
     summary = summarize(results)
-    table = format_table(summary)
+    table = format_table(summary, target.metrics)
     if verbose:
         print(f"{env_id} {kwargs}, {n_episodes} episode(s) per method, seeds {seed}..{seed + n_episodes - 1}")
         print(table)
@@ -405,20 +417,14 @@ def evaluate_and_report(
         "seed": seed,
         "deterministic": True,
     }
-    files: dict[str, Path] = dict(write_results(out, results, summary, metadata))
+    files: dict[str, Path] = dict(write_results(out, results, summary, metadata, target.metrics))
     series = series_from_results(results)
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     files["returns_vs_episode.png"] = plot_returns_vs_episode(series, figures / "returns_vs_episode.png")
-    if all(metric in values for values in series.values() for metric in METRICS):
-        # a task that reports the report's metrics (the UAV envs) gets the report's figures
-        files["fairness_vs_coverage.png"] = plot_fairness_vs_coverage(series, figures / "fairness_vs_coverage.png")
-        files["fairness_vs_energy_efficiency.png"] = plot_fairness_vs_efficiency(
-            series, figures / "fairness_vs_energy_efficiency.png"
-        )
-        files["metrics_vs_episode.png"] = plot_metrics_vs_episode(
-            series, figures / "metrics_vs_episode.png", x_label="evaluation episode"
-        )
+    # a task that reports episode-end values (the UAV envs: c_T, f_T, e_T, eta_T) gets its figures of them
+    for path in plot_task_figures(series, figures, target.metrics, x_label="evaluation episode"):
+        files[path.name] = path
     if record is not None:
         if not gif:
             record.frames.clear()
@@ -426,4 +432,105 @@ def evaluate_and_report(
             files[path.name] = path
     if verbose:
         print(f"Results and figures written to {out}")
-    return {"summary": summary, "results": results, "table": table, "files": files, "env_kwargs": kwargs}
+    return {
+        "summary": summary,
+        "results": results,
+        "table": table,
+        "files": files,
+        "env_kwargs": kwargs,
+        "metrics": target.metrics,
+    }
+
+
+def training_log_metrics(log_path: str | os.PathLike, env_id: str | None = None) -> TaskMetrics | None:
+    """
+    The task metrics of the env a run's logs come from: ``env_id``'s, else, in an RL Zoo run folder, the run's env's
+    (``find_run_config`` of the folder, or of the folder of a ``monitor.csv`` given), made once with the run's env
+    arguments.
+
+    :param log_path: an RL Zoo run folder, a ``monitor.csv`` file, or a TensorBoard log folder
+    :param env_id: a registered multi-agent env id, or None
+    :return: the metrics, or None where no env is known (a bare ``monitor.csv`` or TensorBoard folder) or the run's env
+        is not registered here
+    :raises ValueError: for an ``env_id`` given that is not a registered multi-agent env, or a run file of more than
+        plain YAML values
+    """
+    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
+
+    kwargs: dict[str, Any] = {}
+    if env_id is None:
+        path = Path(log_path)
+        env_id, kwargs = find_run_config(path if path.is_file() else path / "monitor.csv")
+        if env_id not in MULTIAGENT_ENVS:
+            return None
+    elif env_id not in MULTIAGENT_ENVS:
+        raise ValueError(f"unknown env {env_id!r}; registered multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
+    kwargs.pop("render_mode", None)
+    probe = make_multiagent_env(env_id, **kwargs)
+    try:
+        return task_metrics(probe)
+    finally:
+        probe.close()
+
+
+def plot_training_logs(
+    log_path: str | os.PathLike,
+    out_dir: str | os.PathLike,
+    window: int | None = None,
+    name: str = "training",
+    env_id: str | None = None,
+    metrics: TaskMetrics | None = None,
+) -> list[Path]:
+    """
+    The training figures from a run's logs, for any env: the team return, each agent's return and the episode length
+    vs episode (``train_returns_vs_episode.png``); for a task with episode-end values, the figures of them
+    (:func:`~sb3_maddpg.evaluation.figures.plot_task_figures`: on the UAV envs the report's fairness vs coverage,
+    fairness vs energy efficiency and each metric vs episode). Reads the run's ``monitor.csv`` (one point per episode)
+    or, failing that, its TensorBoard event files (one point per logger dump, against timesteps).
+
+    Which metrics the task has, their labels and pairs come from its env (:func:`training_log_metrics`: ``env_id``, or
+    the run folder's env); logs of an unknown env (a bare ``monitor.csv`` or TensorBoard folder) have each of their
+    metrics drawn against episode, labelled by its name.
+
+    :param log_path: an RL Zoo run folder, a ``monitor.csv`` file, or a TensorBoard log folder
+    :param out_dir: output folder (created)
+    :param window: moving-average window of the metric-vs-episode curves (default: about a twentieth of the run)
+    :param name: series label
+    :param env_id: the env the logs come from (default: the run folder's, where there is one)
+    :param metrics: the task's metrics, over ``env_id``'s
+    :return: the paths written
+    :raises FileNotFoundError: if no log with the metrics is found
+    :raises NotAMonitorFileError: if a monitor file found is not a text CSV file
+    """
+    if metrics is None:
+        metrics = training_log_metrics(log_path, env_id)
+    out = Path(out_dir)
+    series: Series = {}
+    x_label = "episode"
+    for monitor_file in find_monitor_files(log_path):
+        candidate = load_monitor_series(monitor_file)
+        if candidate.get("r") is not None and len(candidate["r"]):
+            series = monitor_returns(candidate)
+            break
+    if not series and Path(log_path).is_dir():
+        series = load_tensorboard_series(log_path, metrics=None if metrics is None else metrics.values)
+        x_label = "timesteps"
+    if not series:
+        raise FileNotFoundError(
+            f"no training log under {log_path} (expected a monitor.csv from `python -m sb3_maddpg train` or "
+            "TensorBoard events with rollout/ep_rew_mean)"
+        )
+    if metrics is None:
+        # an unknown env: every column or scalar beside the returns, the length and the time is an episode-end value
+        own = ("x", "return", "length", "t")
+        metrics = TaskMetrics(keys=tuple(key for key in series if key not in own and not key.startswith("return_")))
+    out.mkdir(parents=True, exist_ok=True)
+    n = len(next(values for key, values in series.items() if key != "x"))
+    if window is None:
+        window = max(1, n // 20)
+    runs = {name: series}
+    paths = []
+    if "return" in series:
+        paths.append(plot_returns_vs_episode(runs, out / "train_returns_vs_episode.png", x_label=x_label, window=window))
+    paths += plot_task_figures(runs, out, metrics, x_label, window, prefix="train_", episodes="training episodes")
+    return paths

@@ -43,6 +43,19 @@ class TaskTools(Protocol):
     :ivar state_images: whether ``env.state()`` is a (3, H, W) uint8 image, written at the start, middle and end of
         the recorded episode by default
     :ivar can_draw: whether :meth:`draw_map` and :meth:`draw_frame` draw the env (the TensorBoard pictures)
+    :ivar map_name: the TensorBoard tag of :meth:`draw_map`'s picture after an evaluation is ``eval/<map_name>``
+    :ivar metric_symbols: the evaluation table's column header of each of the task's metrics (a metric without one is
+        headed by its name with spaces for underscores)
+    :ivar metric_labels: the figures' axis label of each of the task's metrics (a metric without one: its name with
+        spaces for underscores)
+    :ivar metric_pairs: (x, y) pairs of episode-end metrics drawn against each other, one point per episode, as
+        ``<y>_vs_<x>.png`` (where the episodes have both)
+    :ivar event_counts: the events per episode that the evaluation table shows after the episode length, where the
+        env reports them: team totals, the sum over the agents' infos at the episode's end, read also where the env
+        does not declare them in its ``metadata["episode_metrics"]``; None: the per-agent metrics the env declares
+        (``metadata["per_agent_episode_metrics"]``)
+    :ivar selection_metric: the episode metric that ``select-checkpoint`` maximises unless told, where the episodes
+        report it; None: the team return
     """
 
     baselines: Mapping[str, Callable[[], Any]] = MappingProxyType({})
@@ -50,6 +63,12 @@ class TaskTools(Protocol):
     evaluation_kwargs: Mapping[str, Any] = MappingProxyType({})
     state_images: bool = False
     can_draw: bool = False
+    map_name: str = "state_image"
+    metric_symbols: Mapping[str, str] = MappingProxyType({})
+    metric_labels: Mapping[str, str] = MappingProxyType({})
+    metric_pairs: tuple[tuple[str, str], ...] = ()
+    event_counts: tuple[str, ...] | None = None
+    selection_metric: str | None = None
 
     def episode_figures(self, env: Any) -> Mapping[str, FigureWriter]:
         """
@@ -92,6 +111,12 @@ MEMBERS: tuple[str, ...] = (
     "evaluation_kwargs",
     "state_images",
     "can_draw",
+    "map_name",
+    "metric_symbols",
+    "metric_labels",
+    "metric_pairs",
+    "event_counts",
+    "selection_metric",
     "episode_figures",
     "draw_map",
     "draw_frame",

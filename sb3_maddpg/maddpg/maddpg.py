@@ -335,9 +335,9 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         """
         present, next_present = self._presence(replay_data)
         with th.no_grad():
-            # Target distribution (SPEC 2): r_i + gamma (1 - d) Z_i'(o', a'), a'_j = mu_j'(o'_j) from the target actors
-            # (for Discrete actions the one-hot argmax). The target critics encode o' once; target actors that read
-            # the critics' encoders reuse them
+            # Target distribution (docs/algorithm.md, section 4, step 1): r_i + gamma (1 - d) Z_i'(o', a'),
+            # a'_j = mu_j'(o'_j) from the target actors (for Discrete actions the one-hot argmax). The target critics
+            # encode o' once; target actors that read the critics' encoders reuse them
             next_features = self.critic_target.encode(replay_data.next_observations)  # (B, N, F)
             next_actions = self.actor_target(replay_data.next_observations, next_features)  # (B, N, A)
             if self.target_policy_noise > 0.0 and not self.actor_target.discrete:

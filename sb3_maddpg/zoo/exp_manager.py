@@ -66,7 +66,7 @@ ZOO_KEYS = frozenset(
         "monitor_kwargs",
         "noise_type",
         "noise_std",
-        # with noise_type "decaying-normal" (MADDPG's decaying Gaussian noise, SPEC §2)
+        # with noise_type "decaying-normal" (MADDPG's decaying Gaussian noise, docs/algorithm.md, "6. Exploration noise")
         "noise_final_std",
         "noise_decay",
     }
@@ -201,11 +201,12 @@ class MultiAgentExperimentManager(ExperimentManager):
     Single-agent Gymnasium envs go through RL Zoo's own code unchanged.
 
     With ``-tb``, a trained run also writes its hyperparameters (TensorBoard's HPARAMS tab) and, after each evaluation
-    on a multi-agent env, the evaluation's episode-end metrics and, on the UAV envs, the pictures of
-    :class:`~sb3_maddpg.common.eval_tensorboard.EvalTensorBoardCallback` (``eval_images``, ``eval_video``).
+    on a multi-agent env, the evaluation's episode-end metrics and, on a task that can draw itself (the UAV envs), the
+    pictures of :class:`~sb3_maddpg.common.eval_tensorboard.EvalTensorBoardCallback` (``eval_images``, ``eval_video``).
     """
 
-    #: Draw the coverage heat map after each evaluation (``train --no-eval-images`` turns it off)
+    #: Draw the task's picture after each evaluation, on the UAV envs the coverage heat map (``train --no-eval-images``
+    #: turns it off)
     eval_images: bool = True
     #: Record a video of one evaluation episode (``train --eval-video``)
     eval_video: bool = False
@@ -546,7 +547,7 @@ class MultiAgentExperimentManager(ExperimentManager):
     def create_callbacks(self) -> None:
         super().create_callbacks()
         if is_multiagent_env(self.env_name.gym_id):
-            # Episode-end coverage, fairness, energy... in TensorBoard next to SB3's scalars (the library's
+            # The env's declared episode-end metrics in TensorBoard next to SB3's scalars (the library's
             # algorithms add this callback themselves; other algorithms trained on a multi-agent env get it here).
             if not issubclass(ALGOS[self.algo], MultiAgentOffPolicyAlgorithm):
                 self.callbacks.append(EpisodeMetricsCallback())

@@ -29,9 +29,12 @@ def register_with_rl_zoo() -> None:
     import rl_zoo3.utils
 
     from sb3_maddpg.algorithms import ALGORITHM_NAMES, algorithm_class
-    from sb3_maddpg.zoo import registry  # noqa: F401  (registers the env ids into Gymnasium's registry)
     from sb3_maddpg.zoo.exp_manager import MultiAgentExperimentManager
     from sb3_maddpg.zoo.hyperparams_opt import convert_maddpg_params, sample_maddpg_params
+    from sb3_maddpg.zoo.registry import load_env_packages
+
+    # the env ids, the installed task packages' included, into Gymnasium's registry, where RL Zoo checks --env
+    load_env_packages()
 
     # One dict object shared by rl_zoo3.utils, .train, .enjoy and .exp_manager: adding a key is seen everywhere.
     for name in ALGORITHM_NAMES:
@@ -66,8 +69,9 @@ def run_train(argv: list[str], eval_images: bool = True, eval_video: bool = Fals
     RL Zoo's ``train`` (also ``-optimize``) with the given command-line arguments.
 
     :param argv: arguments as for ``python -m rl_zoo3.train``
-    :param eval_images: with ``-tb``, draw the coverage heat map after each evaluation (the UAV envs)
-    :param eval_video: with ``-tb``, record a video of one episode after each evaluation (the UAV envs)
+    :param eval_images: with ``-tb``, draw the task's picture after each evaluation (on the UAV envs the coverage heat
+        map), where the task can draw itself
+    :param eval_video: with ``-tb``, record a video of one episode after each evaluation, where the task can draw itself
     :raises TrainingStopped: after the final save, when SIGTERM or an env worker process that ended stopped the run
     """
     import sys

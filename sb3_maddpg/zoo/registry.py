@@ -4,11 +4,17 @@ The multi-agent environments the command line knows, by RL Zoo env id.
 RL Zoo looks env ids up in Gymnasium's registry (``--env`` is checked there, ``is_atari`` reads the entry point), but
 a PettingZoo ``ParallelEnv`` is not a ``gymnasium.Env``: :func:`register_multiagent_env` keeps the real constructor
 here and puts a placeholder into Gymnasium's registry whose ``gym.make`` explains how the env is built instead.
+
+The library registers MPE2's tasks itself; a task package registers its own ids through the entry-point group
+``sb3_maddpg.envs`` of its distribution (:data:`ENV_ENTRY_POINT_GROUP`), which :func:`load_env_packages` reads once,
+when an id is first looked up or registered: installing a task package is all it takes, with no change here. A module
+imported with ``--gym-packages`` may also call :func:`register_multiagent_env` itself.
 """
 
 import functools
 import importlib
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -102,7 +108,95 @@ class _NotAGymEnv:
         return f"sb3_maddpg.zoo.registry:{self.env_id}"
 
 
-MULTIAGENT_ENVS: dict[str, MultiAgentEnvSpec] = {}
+#: The entry-point group of the task packages: each entry names a function of one argument, which it calls with
+#: :func:`register_multiagent_env` once per env id of its package, e.g. in the package's setup.cfg::
+#:
+#:     [options.entry_points]
+#:     sb3_maddpg.envs =
+#:         my_tasks = my_tasks.registration:register_envs
+ENV_ENTRY_POINT_GROUP = "sb3_maddpg.envs"
+# The env ids the commands fall back on: train, optimize, enjoy, record-video, push-to-hub and load-from-hub without
+# --env (the quick start's CPU configuration), and evaluate and select-checkpoint without --env or a model's run (the
+# report's task); both are the UAV coverage task package's (sb3_maddpg_envs), registered through its entry point.
+DEFAULT_ENV_ID = "uav_coverage_cpu_v1"
+DEFAULT_EVALUATION_ENV_ID = "uav_coverage_v0"
+
+_env_packages_loaded = False
+
+
+def load_env_packages() -> None:
+    """
+    Register the env ids of every installed task package, once: each entry point of the group
+    :data:`ENV_ENTRY_POINT_GROUP` (in the order of their names) is loaded and called with
+    :func:`register_multiagent_env`. An entry that fails is skipped with a warning naming it, so that the other envs
+    stay usable. Reading or registering an id calls it first; the ids registered after it (``--gym-packages``) win.
+    """
+    global _env_packages_loaded
+    if _env_packages_loaded:
+        return
+    _env_packages_loaded = True
+    from importlib.metadata import entry_points
+
+    for entry in sorted(entry_points(group=ENV_ENTRY_POINT_GROUP), key=lambda entry: entry.name):
+        try:
+            entry.load()(register_multiagent_env)
+        except Exception as error:  # a broken task package leaves the others usable
+            warnings.warn(
+                f"the task package {entry.name!r} ({entry.value}, entry-point group {ENV_ENTRY_POINT_GROUP!r}) did not "
+                f"register its envs: {type(error).__name__}: {error}",
+                stacklevel=2,
+            )
+
+
+class _EnvRegistry(dict[str, MultiAgentEnvSpec]):
+    """
+    The registered ids (:data:`MULTIAGENT_ENVS`): a dict that registers the installed task packages' ids
+    (:func:`load_env_packages`) before it is first read.
+    """
+
+    def __contains__(self, env_id: object) -> bool:
+        load_env_packages()
+        return super().__contains__(env_id)
+
+    def __getitem__(self, env_id: str) -> MultiAgentEnvSpec:
+        load_env_packages()
+        return super().__getitem__(env_id)
+
+    def __iter__(self) -> Iterator[str]:
+        load_env_packages()
+        return super().__iter__()
+
+    def __len__(self) -> int:
+        load_env_packages()
+        return super().__len__()
+
+    def get(self, env_id: str, default: Any = None) -> Any:
+        load_env_packages()
+        return super().get(env_id, default)
+
+    def keys(self) -> Any:
+        load_env_packages()
+        return super().keys()
+
+    def values(self) -> Any:
+        load_env_packages()
+        return super().values()
+
+    def items(self) -> Any:
+        load_env_packages()
+        return super().items()
+
+
+MULTIAGENT_ENVS: dict[str, MultiAgentEnvSpec] = _EnvRegistry()
+
+
+def _register(env_id: str, entry_point: str | Callable[..., ParallelEnv], kwargs: dict[str, Any] | None) -> MultiAgentEnvSpec:
+    """:func:`register_multiagent_env` without reading the task packages first (the library's own ids, at import)."""
+    spec = MultiAgentEnvSpec(env_id, entry_point, dict(kwargs or {}))
+    dict.__setitem__(MULTIAGENT_ENVS, env_id, spec)
+    if env_id not in gym.registry:
+        gym.register(env_id, entry_point=_NotAGymEnv(env_id))
+    return spec
 
 
 def register_multiagent_env(
@@ -113,18 +207,15 @@ def register_multiagent_env(
 
     Its agents must share one Box observation space and one action space, Box or Discrete (what MADDPG's VecEnv
     needs).
-    Registering an id again replaces it.
+    Registering an id again replaces it (the installed task packages register theirs first, :func:`load_env_packages`).
 
     :param env_id: the id, also the key of its YAML entry
     :param entry_point: the ``ParallelEnv`` constructor or its ``"module:attribute"`` path
     :param kwargs: default constructor arguments
     :return: the spec
     """
-    spec = MultiAgentEnvSpec(env_id, entry_point, dict(kwargs or {}))
-    MULTIAGENT_ENVS[env_id] = spec
-    if env_id not in gym.registry:
-        gym.register(env_id, entry_point=_NotAGymEnv(env_id))
-    return spec
+    load_env_packages()
+    return _register(env_id, entry_point, kwargs)
 
 
 def is_multiagent_env(env_id: str) -> bool:
@@ -139,7 +230,7 @@ def make_multiagent_env(env_id: str, **kwargs: Any) -> ParallelEnv:
     """
     Build a registered multi-agent env.
 
-    :param env_id: a registered id (``uav_coverage_v0``, ``uav_coverage_fast_v0``, ``simple_spread_v3``, ...)
+    :param env_id: a registered id (``simple_spread_v3``, a task package's ``uav_coverage_v0``, ...)
     :param kwargs: constructor arguments over the registered defaults
     :return: the ``ParallelEnv``
     """
@@ -167,47 +258,14 @@ def check_env_kwargs(env_id: str, env_kwargs: dict[str, Any] | None, flag: str =
     return metadata
 
 
-# The report's environment, its cheap variant (1 pixel per cell instead of 5: about 25 times fewer pixels for the
-# CNN) and an MPE2 task with continuous actions, to show nothing is tied to the UAV env.
-register_multiagent_env("uav_coverage_v0", "sb3_maddpg_envs.uav_coverage_v0:parallel_env")
-register_multiagent_env("uav_coverage_fast_v0", "sb3_maddpg_envs.uav_coverage_v0:parallel_env", {"obs_size": 16})
-# Version 1 (the same simulation with the defaults that learn) and its CPU variant: the same task at 1 pixel per cell.
-register_multiagent_env("uav_coverage_v1", "sb3_maddpg_envs.uav_coverage_v1:parallel_env")
-register_multiagent_env("uav_coverage_cpu_v1", "sb3_maddpg_envs.uav_coverage_v1:parallel_env", {"obs_size": 16})
-# The published setting of Liu et al., "Distributed Energy-Efficient Multi-UAV Navigation for Long-Term Communication
-# Coverage by Deep Reinforcement Learning", IEEE TMC 19(6), 2020 (docs/results.md, "The published setting"): v1's rules
-# on the paper's geometry and energy. A step costs hover_energy + (move_energy * l_max - hover_energy) * rho, so 0.5
-# hovering and 1.0 for a full move of one cell, and the energy metric is e_T / (N T * 1.0) as in the paper.
-TMC2020_KWARGS: dict[str, Any] = {
-    "map_size": 10,  # 10 x 10 area, the 100 grid PoIs
-    "n_uavs": 6,  # the paper's default; its sweep is 3 to 8
-    "coverage_range": 3.0,
-    "comm_range": 5.0,
-    "max_distance": 1.0,  # one PoI spacing (inferred from the paper's figures)
-    "move_energy": 1.0,
-    "hover_energy": 0.5,
-    "max_cycles": 500,
-    # 2 pixels per cell: obs_size must be a multiple of map_size, and the CNN (ReportCNN, three 3 x 3 stride-2
-    # convolutions) needs at least 15 x 15 pixels, so 10 (1 pixel per cell) is too small and 20 the smallest that fits.
-    "obs_size": 20,
-}
-register_multiagent_env("uav_coverage_tmc_v1", "sb3_maddpg_envs.uav_coverage_v1:parallel_env", TMC2020_KWARGS)
-# The hazardous task on the CPU variant: wind gusts that crash a UAV near a wall and radio links that fail
-# (uav_coverage_v1.HAZARDS), where the risk-neutral and the risk-averse optimum differ (docs/environment.md, "Hazards").
-register_multiagent_env("uav_coverage_hazard_cpu_v1", "sb3_maddpg_envs.uav_coverage_v1:hazard_parallel_env", {"obs_size": 16})
-# The storm task on the CPU variant: a storm over the middle of the map that grounds a UAV it strikes
-# (uav_coverage_v1.STORM; docs/environment.md, "Hazards"), where the risk-neutral and the risk-averse optimum differ.
-register_multiagent_env("uav_coverage_storm_cpu_v1", "sb3_maddpg_envs.uav_coverage_v1:storm_parallel_env", {"obs_size": 16})
-# The storm task redesigned so that a critic looking about 10 steps ahead sees it (uav_coverage_v1.STORM_V2): the zone
-# drawn on channel 0, strikes frequent inside it, each costing at once; the old task stays for comparison.
-register_multiagent_env("uav_coverage_storm_cpu_v2", "sb3_maddpg_envs.uav_coverage_v1:storm_v2_parallel_env", {"obs_size": 16})
-# A small task where the mean and the lower tail prefer different ways (a visible risky zone across the short way):
-# the proving ground of the CVaR actor (sb3_maddpg_envs/risky_reach_v0.py).
-register_multiagent_env("risky_reach_v0", "sb3_maddpg_envs.risky_reach_v0:parallel_env")
-register_multiagent_env("simple_spread_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": True})
+# MPE2's tasks, which the library adapts (agents with spaces of their own padded, competing teams): an MPE2 task with
+# continuous actions, to show nothing is tied to one task package. MPE2 is an optional package (the zoo extra), needed
+# only by these envs when they are made. The task packages' ids (the UAV coverage tasks, risky_reach_v0) are theirs:
+# sb3_maddpg_envs/registration.py, registered through the entry point ENV_ENTRY_POINT_GROUP.
+_register("simple_spread_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": True})
 # The same task with MPE2's default Discrete(5) actions (no-op, left, right, down, up), as in the MADDPG paper: the
 # actors learn through the straight-through Gumbel-softmax (docs/algorithm.md, "Discrete actions").
-register_multiagent_env("simple_spread_discrete_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": False})
+_register("simple_spread_discrete_v3", "mpe2.simple_spread_v3:parallel_env", {"continuous_actions": False})
 # MPE2's other multi-agent tasks, the MADDPG paper's (Lowe et al. 2017): cooperative (reference, speaker-listener,
 # crypto's alice and bob), competing (adversary, push, tag, world_comm). Each as <task> with continuous actions and
 # <name>_discrete_<version> with MPE2's default Discrete ones; agents with spaces of their own are padded
@@ -223,5 +281,5 @@ MPE2_TASKS = (
 )
 for _task in MPE2_TASKS:
     _name, _version = _task.rsplit("_", 1)
-    register_multiagent_env(_task, f"mpe2.{_task}:parallel_env", {"continuous_actions": True})
-    register_multiagent_env(f"{_name}_discrete_{_version}", f"mpe2.{_task}:parallel_env", {"continuous_actions": False})
+    _register(_task, f"mpe2.{_task}:parallel_env", {"continuous_actions": True})
+    _register(f"{_name}_discrete_{_version}", f"mpe2.{_task}:parallel_env", {"continuous_actions": False})

@@ -26,9 +26,9 @@ import argparse
 import sys
 from typing import Any
 
-from sb3_maddpg.__main__ import parse_key_values
 from sb3_maddpg.evaluation.evaluate import evaluate_controllers, format_table, summarize, write_results
 from sb3_maddpg.evaluation.metrics import task_metrics
+from sb3_maddpg.zoo.command_line import parse_key_values
 from sb3_maddpg.zoo.registry import UsageError, make_multiagent_env
 from sb3_maddpg_envs.uav_coverage.baselines import GreedyStaticController
 

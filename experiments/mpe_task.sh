@@ -24,7 +24,7 @@ run() { echo "$(date -u +%H:%M:%S) $*" >&2; nice -n 10 taskset -c "$CORE" "$@"; 
 eval_kwargs=$("$PY" - "$ENV_ID" ${ENV_KWARGS[@]+"${ENV_KWARGS[@]}"} <<'PY'
 import json, sys
 
-from sb3_maddpg.__main__ import parse_key_values
+from sb3_maddpg.zoo.command_line import parse_key_values
 from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS
 
 kwargs = {"continuous_actions": MULTIAGENT_ENVS[sys.argv[1]].kwargs["continuous_actions"], "max_cycles": 25}

@@ -33,7 +33,7 @@ def test_the_command_line_and_rl_zoo_read_the_registry() -> None:
     pytest.importorskip("rl_zoo3")
     import rl_zoo3.utils
 
-    from sb3_maddpg.__main__ import MULTIAGENT_ALGOS
+    from sb3_maddpg.zoo.command_line import MULTIAGENT_ALGOS
     from sb3_maddpg.zoo.integration import register_with_rl_zoo
 
     register_with_rl_zoo()

@@ -9,8 +9,9 @@ import pytest
 from stable_baselines3.common.callbacks import ProgressBarCallback
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
-from sb3_maddpg.__main__ import main, packaged_config
+from sb3_maddpg.__main__ import main
 from sb3_maddpg.common.callbacks import JointStepProgressBarCallback
+from sb3_maddpg.zoo.command_line import packaged_config
 from sb3_maddpg.zoo.registry import DEFAULT_ENV_ID as DEFAULT_ENV
 from sb3_maddpg_envs import uav_coverage_v1
 

@@ -332,13 +332,13 @@ def test_safe_config_refuses_code_in_the_entry(
 def test_safe_config_reads_yaml_values_only(tmp_path: Path, capsys) -> None:
     from cli_testing import fails_with
 
-    from sb3_maddpg.__main__ import _check_config, packaged_config, prepare_zoo_argv
+    from sb3_maddpg.zoo.command_line import check_config, packaged_config, prepare_zoo_argv
 
     # the packaged files hold values only (their policy_kwargs strings are dict(...) of literals)
     for algo in ("maddpg", "matd3"):
         config = os.fspath(packaged_config(algo))
         for env_id in yaml.safe_load(Path(config).read_text()):
-            _check_config(config, env_id, safe=True)
+            check_config(config, env_id, safe=True)
     assert "--safe-config" not in prepare_zoo_argv("train", ["--env", ENV, "--safe-config"])
     (tmp_path / "hyperparams.py").write_text("hyperparams = {}\n")
     err = fails_with(["train", "--env", ENV, "-conf", os.fspath(tmp_path / "hyperparams.py"), "--safe-config"], capsys)

@@ -55,7 +55,7 @@ def _patch_enjoy() -> Any:
     :return: the module
     """
     enjoy_module = importlib.import_module("rl_zoo3.enjoy")
-    from sb3_maddpg.zoo.exp_manager import create_multiagent_test_env
+    from sb3_maddpg.zoo.vec_envs import create_multiagent_test_env
 
     if not isinstance(enjoy_module.create_test_env, functools.partial):
         import rl_zoo3.utils
@@ -144,7 +144,7 @@ def run_record_video(argv: list[str]) -> None:
 
     import rl_zoo3.utils
 
-    from sb3_maddpg.zoo.exp_manager import create_multiagent_test_env
+    from sb3_maddpg.zoo.vec_envs import create_multiagent_test_env
 
     register_with_rl_zoo()
     saved_argv, saved_create = sys.argv, rl_zoo3.utils.create_test_env

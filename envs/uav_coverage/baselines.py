@@ -18,7 +18,7 @@ from pettingzoo import ParallelEnv
 from .dynamics import move_within_walls, step_energy
 from .hazards import in_zone
 from .rewards import coverage_score, covering_pairs, energy_weighted_gain, jain_fairness
-from .validation import check_int, check_real, check_zone
+from .validation import check_int, check_number, check_zone
 
 __all__ = [
     "GREEDY_STEP_HEADINGS",
@@ -168,7 +168,7 @@ class GreedyStaticController:
     ) -> None:
         self.name = name
         self.connected = connected
-        self.wall_margin = check_real("wall_margin", wall_margin, low=0.0, low_inclusive=True)
+        self.wall_margin = check_number("wall_margin", wall_margin, low=0.0)
         self.avoid_storm = bool(avoid_storm)
         self.targets: np.ndarray | None = None
 
@@ -225,7 +225,7 @@ def greedy_step_scores(
     :return: scores (N, 1 + n_headings), the candidates' positions (N, 1 + n_headings, 2) and their distance ratios
         rho (1 + n_headings,) (0 hovering, 1 moving)
     """
-    n_headings = check_int("n_headings", n_headings, 1)
+    n_headings = check_int("n_headings", n_headings, low=1)
     n, n_candidates = core.n_uavs, 1 + n_headings
     positions, active, pois = core.positions, core.active, core.pois  # pois (K, 2)
     angles = 2.0 * np.pi * np.arange(n_headings) / n_headings
@@ -291,7 +291,7 @@ class GreedyStepController:
 
     def __init__(self, name: str = "greedy_step", n_headings: int = GREEDY_STEP_HEADINGS) -> None:
         self.name = name
-        self.n_headings = check_int("n_headings", n_headings, 1)
+        self.n_headings = check_int("n_headings", n_headings, low=1)
 
     def reset(self, env: ParallelEnv, seed: int | None = None) -> None:
         _core(env)  # fails early on an env without a simulation core

@@ -28,8 +28,8 @@ from .validation import (
     MAX_UAVS,
     check_choice,
     check_int,
+    check_number,
     check_points,
-    check_real,
     check_step_memory,
     check_zone,
     warn_without_effect,
@@ -46,11 +46,15 @@ def _checked(default: Any, check: Check) -> Any:
 
 
 def _real(**bounds: Any) -> Check:
-    return lambda name, value, _config: check_real(name, value, **bounds)
+    return lambda name, value, _config: check_number(name, value, **bounds)
 
 
-def _int(minimum: int, maximum: int) -> Check:
-    return lambda name, value, _config: check_int(name, value, minimum, maximum)
+def _positive() -> Check:
+    return _real(low=0.0, low_open=True)
+
+
+def _int(low: int, high: int) -> Check:
+    return lambda name, value, _config: check_int(name, value, low=low, high=high)
 
 
 def _choice(choices: tuple[str, ...]) -> Check:
@@ -67,7 +71,7 @@ def _flag(accepted: str) -> Check:
 
 
 def _comm_range(name: str, value: Any, config: UAVCoverageConfig) -> float:
-    comm_range = check_real(name, value)
+    comm_range = check_number(name, value, low=0.0, low_open=True)
     if config.coverage_range > comm_range:
         raise ValueError(
             f"coverage_range must be <= comm_range (R0 <= R), got coverage_range={config.coverage_range!r} "
@@ -77,18 +81,18 @@ def _comm_range(name: str, value: Any, config: UAVCoverageConfig) -> float:
 
 
 def _obs_size(name: str, value: Any, config: UAVCoverageConfig) -> int:
-    obs_size = check_int(name, value, 1, MAX_OBS_SIZE)
+    obs_size = check_int(name, value, low=1, high=MAX_OBS_SIZE)
     if obs_size % config.map_size != 0:
         raise ValueError(f"obs_size must be a positive multiple of map_size={config.map_size}, got {value!r}")
     return obs_size
 
 
 def _reward_clip(name: str, value: Any, _config: UAVCoverageConfig) -> float | None:
-    return None if value is None else check_real(name, value)
+    return None if value is None else check_number(name, value, low=0.0, low_open=True)
 
 
 def _grounded_penalty(name: str, value: Any, config: UAVCoverageConfig) -> float:
-    penalty = check_real(name, value, low_inclusive=True)
+    penalty = check_number(name, value, low=0.0)
     if penalty > 0.0 and config.crash_ground_steps == 0:
         raise ValueError(
             f"grounded_penalty={value!r} needs crash_ground_steps >= 1 (without grounding no UAV is "
@@ -102,7 +106,7 @@ def _storm_zone(name: str, value: Any, config: UAVCoverageConfig) -> tuple[float
 
 
 def _storm_prob(name: str, value: Any, config: UAVCoverageConfig) -> float:
-    storm_prob = check_real(name, value, low_inclusive=True, high=1.0, high_inclusive=True)
+    storm_prob = check_number(name, value, low=0.0, high=1.0)
     if storm_prob > 0.0 and config.storm_zone is None:
         raise ValueError(
             f"storm_prob={value!r} needs a storm_zone (x0, y0, x1, y1) where the storm strikes; set storm_zone "
@@ -212,44 +216,44 @@ class UAVCoverageConfig:
     # read with n_pois in __post_init__, once the other parameters are checked
     pois: str | os.PathLike | np.ndarray | list = "grid"
     n_pois: int | None = None
-    poi_threshold: float = _checked(0.1, _real(low_inclusive=True, high=1.0))
-    max_energy: float = _checked(500.0, _real())
-    max_distance: float = _checked(3.0, _real())
-    move_energy: float = _checked(1.0 / 3.0, _real())
-    hover_energy: float = _checked(0.5, _real())
-    coverage_range: float = _checked(3.0, _real())
+    poi_threshold: float = _checked(0.1, _real(low=0.0, high=1.0, high_open=True))
+    max_energy: float = _checked(500.0, _positive())
+    max_distance: float = _checked(3.0, _positive())
+    move_energy: float = _checked(1.0 / 3.0, _positive())
+    hover_energy: float = _checked(0.5, _positive())
+    coverage_range: float = _checked(3.0, _positive())
     comm_range: float = _checked(6.0, _comm_range)
-    wall_penalty: float = _checked(10.0, _real(low_inclusive=True))
-    comm_penalty: float = _checked(1.0, _real(low_inclusive=True))
-    entropy_coef: float = _checked(0.1, _real(low_inclusive=True))
-    eps: float = _checked(1e-4, _real(high=1.0))
+    wall_penalty: float = _checked(10.0, _real(low=0.0))
+    comm_penalty: float = _checked(1.0, _real(low=0.0))
+    entropy_coef: float = _checked(0.1, _real(low=0.0))
+    eps: float = _checked(1e-4, _real(low=0.0, high=1.0, low_open=True, high_open=True))
     max_cycles: int = _checked(300, _int(1, MAX_STEPS))
     obs_size: int = _checked(80, _obs_size)
     # read in __post_init__
     start: str | np.ndarray | list = "fixed"
-    reward_scale: float = _checked(1.0, _real())
+    reward_scale: float = _checked(1.0, _positive())
     reward_clip: float | None = _checked(None, _reward_clip)
     action_mode: str = _checked("polar", _choice(ACTION_MODES))
     wall_mode: str = _checked("refuse", _choice(WALL_MODES))
     reward_mode: str = _checked("report", _choice(REWARD_MODES))
-    fairness_coef: float = _checked(0.5, _real(low_inclusive=True, high=1.0, high_inclusive=True))
-    energy_coef: float = _checked(0.5, _real(low_inclusive=True))
+    fairness_coef: float = _checked(0.5, _real(low=0.0, high=1.0))
+    energy_coef: float = _checked(0.5, _real(low=0.0))
     teammate_channel: bool = _checked(False, _flag("a bool"))
     position_mark: str = _checked("cell", _choice(POSITION_MARKS))
     # Hazards (all off by default, and then no random number is drawn: v0 and v1 are unchanged)
-    gust_prob: float = _checked(0.0, _real(low_inclusive=True, high=1.0, high_inclusive=True))
-    gust_scale: float = _checked(1.0, _real())
+    gust_prob: float = _checked(0.0, _real(low=0.0, high=1.0))
+    gust_scale: float = _checked(1.0, _positive())
     # a >= 0.5: below, a single gust's distance is so heavy-tailed that almost every gust crosses the map
-    gust_tail: float = _checked(2.0, _real(low=0.5, low_inclusive=True))
-    crash_energy: float = _checked(0.0, _real(low_inclusive=True))
+    gust_tail: float = _checked(2.0, _real(low=0.5))
+    crash_energy: float = _checked(0.0, _real(low=0.0))
     # p_f < 1: with certain failure there would be no links at all, a comm_range of 0 in disguise
-    link_failure_prob: float = _checked(0.0, _real(low_inclusive=True, high=1.0))
+    link_failure_prob: float = _checked(0.0, _real(low=0.0, high=1.0, high_open=True))
     crash_ground_steps: int = _checked(0, _int(0, MAX_STEPS))
     grounded_penalty: float = _checked(0.0, _grounded_penalty)
     show_grounded: bool = _checked(False, _flag("True or False"))
     storm_zone: tuple[float, float, float, float] | None = _checked(None, _storm_zone)
     storm_prob: float = _checked(0.0, _storm_prob)
-    storm_penalty: float = _checked(0.0, _real(low_inclusive=True))
+    storm_penalty: float = _checked(0.0, _real(low=0.0))
     show_storm_zone: bool = _checked(False, _flag("True or False"))
 
     # --- read from the parameters by __post_init__ ---------------------------------------------------------------------

@@ -124,7 +124,7 @@ def resolve_pois(
     if isinstance(pois, str) and pois in ("grid", "uniform"):
         mode = pois
         if pois == "uniform":
-            n_uniform = check_int("n_pois", map_size**2 if n_pois is None else n_pois, 1, MAX_MAP_SIZE**2)
+            n_uniform = check_int("n_pois", map_size**2 if n_pois is None else n_pois, low=1, high=MAX_MAP_SIZE**2)
         else:
             points = lattice_pois(map_size)
     elif isinstance(pois, str | os.PathLike):

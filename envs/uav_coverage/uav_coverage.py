@@ -100,7 +100,7 @@ class UAVCoverageEnv(ParallelEnv, EzPickle):
 
     @max_cycles.setter
     def max_cycles(self, value: int) -> None:
-        self.core.max_cycles = check_int("max_cycles", value, 1, MAX_STEPS)
+        self.core.max_cycles = check_int("max_cycles", value, low=1, high=MAX_STEPS)
 
     def snapshot(self) -> UAVCoverageSnapshot:
         """

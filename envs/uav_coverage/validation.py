@@ -19,8 +19,8 @@ __all__ = [
     "MIN_POSITIVE",
     "check_choice",
     "check_int",
+    "check_number",
     "check_points",
-    "check_real",
     "check_step_memory",
     "check_zone",
     "warn_without_effect",
@@ -41,11 +41,32 @@ MAX_STEPS = 10**9
 MAX_STEP_BYTES = 2**30
 
 
-def check_int(name: str, value: Any, minimum: int, maximum: int | None = None) -> int:
-    too_large = maximum is not None and isinstance(value, numbers.Integral) and int(value) > maximum
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or int(value) < minimum or too_large:
-        accepted = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
-        raise ValueError(f"{name} must be an integer {accepted}, got {value!r}")
+def check_int(name: str, value: Any, low: int | None = None, high: int | None = None) -> int:
+    """
+    An integer in ``[low, high]`` (the same helper as sb3_maddpg's ``sb3_maddpg.common.validation``, which this package
+    does not import).
+
+    :param name: the parameter's name
+    :param value: the value given
+    :param low: the smallest accepted value (None: unbounded)
+    :param high: the largest accepted value (None: unbounded)
+    :return: the value as an int
+    """
+    ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
+    if ok and low is not None:
+        ok = int(value) >= low
+    if ok and high is not None:
+        ok = int(value) <= high
+    if not ok:
+        if low is not None and high is not None:
+            accepted = f"an integer in [{low}, {high}]"
+        elif low is not None:
+            accepted = f"an integer >= {low}"
+        elif high is not None:
+            accepted = f"an integer <= {high}"
+        else:
+            accepted = "an integer"
+        raise ValueError(f"{name} must be {accepted}, got {value!r}")
     return int(value)
 
 
@@ -64,28 +85,40 @@ def check_step_memory(what: str, parameters: str, n_bytes: int) -> None:
         )
 
 
-def check_real(
+def check_number(
     name: str,
     value: Any,
-    *,
-    low: float = 0.0,
-    low_inclusive: bool = False,
+    low: float | None = None,
     high: float | None = None,
-    high_inclusive: bool = False,
+    low_open: bool = False,
+    high_open: bool = False,
 ) -> float:
+    """
+    A finite real number in ``[low, high]``; ``low_open`` and ``high_open`` exclude the bound (the interface of
+    sb3_maddpg's ``check_number``). Beyond it, the simulation's bounds: ``|value| <= MAX_REAL``, and a value above an
+    open bound 0 is at least ``MIN_POSITIVE``.
+
+    :param name: the parameter's name
+    :param value: the value given
+    :param low: the lower bound (None: unbounded)
+    :param high: the upper bound (None: unbounded)
+    :param low_open: exclude ``low``
+    :param high_open: exclude ``high``
+    :return: the value as a float
+    """
     ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(float(value))
-    if ok:
-        value_f = float(value)
-        ok = value_f >= low if low_inclusive else value_f > low
-        if high is not None:
-            ok = ok and (value_f <= high if high_inclusive else value_f < high)
+    if ok and low is not None:
+        ok = float(value) > low if low_open else float(value) >= low
+    if ok and high is not None:
+        ok = float(value) < high if high_open else float(value) <= high
     if not ok:
-        accepted = f"a finite number {'>=' if low_inclusive else '>'} {low:g}"
+        accepted = "a finite number" if low is None else f"a finite number {'>' if low_open else '>='} {low:g}"
         if high is not None:
-            accepted += f" and {'<=' if high_inclusive else '<'} {high:g}"
+            accepted += f"{' and' if low is not None else ''} {'<' if high_open else '<='} {high:g}"
         raise ValueError(f"{name} must be {accepted}, got {value!r}")
-    if abs(float(value)) > MAX_REAL or (low == 0.0 and not low_inclusive and float(value) < MIN_POSITIVE):
-        lowest, highest = (0.0 if low_inclusive else MIN_POSITIVE), (MAX_REAL if high is None else high)
+    if abs(float(value)) > MAX_REAL or (low == 0.0 and low_open and float(value) < MIN_POSITIVE):
+        lowest = -MAX_REAL if low is None else (MIN_POSITIVE if low_open else 0.0)
+        highest = MAX_REAL if high is None else high
         interval = f"[{lowest:g}, {highest:g}{']' if high is None else ')'}"
         raise ValueError(
             f"{name} must lie in {interval} (beyond, the simulation's squares, products and quotients overflow "

@@ -167,10 +167,10 @@ class EvalTensorBoardCallback(BaseCallback):
         self.make_env = make_env
         self.images = images
         self.video = video
-        self.seed = check_int("seed", seed, minimum=0)
-        self.video_fps = check_int("video_fps", video_fps, minimum=1)
-        self.video_frames = check_int("video_frames", video_frames, minimum=2)
-        self.video_size = check_int("video_size", video_size, minimum=32)
+        self.seed = check_int("seed", seed, low=0)
+        self.video_fps = check_int("video_fps", video_fps, low=1)
+        self.video_frames = check_int("video_frames", video_frames, low=2)
+        self.video_size = check_int("video_size", video_size, low=32)
         self.drawing_seconds = 0.0
         self._env: Any = None
         self._seen_episodes = 0

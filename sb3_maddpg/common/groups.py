@@ -13,19 +13,20 @@ GROUPS_ACCEPTED = (
 )
 
 
-def check_groups(groups: Any) -> None:
+def check_groups(groups: Any) -> Any:
     """
     Check the form of a ``groups`` argument where it enters (the agents' names are checked once the env is known).
 
     :param groups: the argument
+    :return: the argument
     :raises TypeError: if it is none of the accepted forms
     """
     if groups is None or (isinstance(groups, str) and groups == "teams"):
-        return
+        return groups
     if isinstance(groups, Sequence) and not isinstance(groups, str):
         if all(isinstance(group, Sequence) and not isinstance(group, str) for group in groups):
             if all(isinstance(name, str) for group in groups for name in group):
-                return
+                return groups
     raise TypeError(f"groups must be {GROUPS_ACCEPTED}; got {groups!r}")
 
 

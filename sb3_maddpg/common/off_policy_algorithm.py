@@ -48,7 +48,22 @@ from sb3_maddpg.common.evaluation import evaluate_joint_episodes
 from sb3_maddpg.common.noise import DecayingGaussianNoise, RowBatchedActionNoise, set_noise_timestep
 from sb3_maddpg.common.saving import SavedMultiAgentModel
 from sb3_maddpg.common.team import MultiAgentTeam, default_agent_names, first_non_finite
-from sb3_maddpg.common.validation import check_int, check_off_policy_arguments
+from sb3_maddpg.common.validation import (
+    check_action_noise,
+    check_bool,
+    check_device,
+    check_gradient_steps,
+    check_int,
+    check_learning_rate,
+    check_number,
+    check_optional_dict,
+    check_policy_kwargs,
+    check_replay_buffer_class,
+    check_seed,
+    check_tensorboard_log,
+    check_train_freq,
+    check_vec_env,
+)
 
 SelfMultiAgentOffPolicyAlgorithm = TypeVar("SelfMultiAgentOffPolicyAlgorithm", bound="MultiAgentOffPolicyAlgorithm")
 
@@ -124,51 +139,29 @@ class MultiAgentOffPolicyAlgorithm(MultiAgentTeam, SavedMultiAgentModel, OffPoli
         seed: int | None = None,
         flush_denormals: bool = True,
     ) -> None:
+        # Each argument that SB3's OffPolicyAlgorithm stores is checked as it is handed over (SB3 would accept some bad
+        # values silently or fail deep inside); the ones this class stores, where it stores them
         name = type(self).__name__
-        check_off_policy_arguments(
-            name,
-            dict(
-                env=env,
-                learning_rate=learning_rate,
-                buffer_size=buffer_size,
-                learning_starts=learning_starts,
-                batch_size=batch_size,
-                tau=tau,
-                gamma=gamma,
-                train_freq=train_freq,
-                gradient_steps=gradient_steps,
-                action_noise=action_noise,
-                replay_buffer_class=replay_buffer_class,
-                replay_buffer_kwargs=replay_buffer_kwargs,
-                stats_window_size=stats_window_size,
-                tensorboard_log=tensorboard_log,
-                policy_kwargs=policy_kwargs,
-                verbose=verbose,
-                seed=seed,
-                device=device,
-                flush_denormals=flush_denormals,
-            ),
-        )
         super().__init__(
             policy,
-            env,  # type: ignore[arg-type]
-            learning_rate,
-            buffer_size,
-            learning_starts,
-            batch_size,
-            tau,
-            gamma,
-            train_freq,
-            gradient_steps,
-            action_noise=action_noise,
-            replay_buffer_class=replay_buffer_class,
-            replay_buffer_kwargs=replay_buffer_kwargs,
-            policy_kwargs=policy_kwargs,
-            stats_window_size=stats_window_size,
-            tensorboard_log=tensorboard_log,
-            verbose=verbose,
-            device=device,
-            seed=seed,
+            check_vec_env(name, env),
+            check_learning_rate("learning_rate", learning_rate),
+            check_int("buffer_size", buffer_size, low=1),
+            check_int("learning_starts", learning_starts, low=0),
+            check_int("batch_size", batch_size, low=1),
+            check_number("tau", tau, low=0.0, high=1.0),
+            check_number("gamma", gamma, low=0.0, high=1.0),
+            check_train_freq(train_freq),
+            check_gradient_steps(gradient_steps),
+            action_noise=check_action_noise(action_noise),
+            replay_buffer_class=check_replay_buffer_class(name, replay_buffer_class),
+            replay_buffer_kwargs=check_optional_dict("replay_buffer_kwargs", replay_buffer_kwargs),
+            policy_kwargs=check_policy_kwargs(policy_kwargs),
+            stats_window_size=check_int("stats_window_size", stats_window_size, low=1),
+            tensorboard_log=check_tensorboard_log(tensorboard_log),
+            verbose=check_int("verbose", verbose, low=0),
+            device=check_device(device),
+            seed=check_seed("seed", seed),
             sde_support=False,
             supported_action_spaces=SUPPORTED_ACTION_SPACES,
             support_multi_env=True,
@@ -181,7 +174,7 @@ class MultiAgentOffPolicyAlgorithm(MultiAgentTeam, SavedMultiAgentModel, OffPoli
                     f"replay_buffer_kwargs' storage_device={str(storage)!r} must be the model's device ({self.device}): "
                     "the buffer is sampled where the networks train"
                 )
-        self.flush_denormals = flush_denormals
+        self.flush_denormals = check_bool("flush_denormals", flush_denormals)
         self.n_agents: int | None = n_agents
         self.agent_names: list[str] | None = None
         # Each agent's own spaces where they differ (the VecEnv's are then padded); None when all agents share them
@@ -477,9 +470,9 @@ class MultiAgentOffPolicyAlgorithm(MultiAgentTeam, SavedMultiAgentModel, OffPoli
         :param progress_bar: display a progress bar (in timesteps) using tqdm and rich
         :return: the trained model
         """
-        check_int("total_timesteps", total_timesteps, 1)
+        check_int("total_timesteps", total_timesteps, low=1)
         if log_interval is not None:
-            check_int("log_interval (None: no logging)", log_interval, 1)
+            check_int("log_interval (None: no logging)", log_interval, low=1)
         with flushed_denormals(self.flush_denormals):
             return super().learn(
                 total_timesteps=total_timesteps,

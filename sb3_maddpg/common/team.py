@@ -60,7 +60,7 @@ class MultiAgentTeam:
         """Set ``n_agents`` and ``agent_names`` from the env (or the argument) and check the VecEnv's rows and team."""
         env_n_agents = getattr(env, "n_agents", None)
         if n_agents is not None:
-            check_int("n_agents", n_agents, 1)
+            check_int("n_agents", n_agents, low=1)
         names = getattr(env, "possible_agents", None)
         if env_n_agents is not None and n_agents is not None and env_n_agents != n_agents:
             if self.agent_names is not None and names is not None:

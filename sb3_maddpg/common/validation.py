@@ -17,43 +17,68 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
 from sb3_maddpg.common.actions import check_action_space
-from sb3_maddpg.common.groups import check_groups
 
 
-def check_int(name: str, value: Any, minimum: int | None = None) -> int:
+def check_int(name: str, value: Any, low: int | None = None, high: int | None = None) -> int:
     """
+    An integer in ``[low, high]`` (the same helper as the task package's ``sb3_maddpg_envs`` validation module).
+
     :param name: the argument's name
     :param value: the value given
-    :param minimum: the smallest accepted value
+    :param low: the smallest accepted value (None: unbounded)
+    :param high: the largest accepted value (None: unbounded)
     :return: the value as an int
     """
-    if isinstance(value, bool) or not isinstance(value, Integral) or (minimum is not None and value < minimum):
-        accepted = "an integer" if minimum is None else f"an integer >= {minimum}"
+    ok = isinstance(value, Integral) and not isinstance(value, bool)
+    if ok and low is not None:
+        ok = int(value) >= low
+    if ok and high is not None:
+        ok = int(value) <= high
+    if not ok:
+        if low is not None and high is not None:
+            accepted = f"an integer in [{low}, {high}]"
+        elif low is not None:
+            accepted = f"an integer >= {low}"
+        elif high is not None:
+            accepted = f"an integer <= {high}"
+        else:
+            accepted = "an integer"
         raise ValueError(f"{name} must be {accepted}, got {value!r}")
     return int(value)
 
 
-def check_number(name: str, value: Any, low: float | None = None, high: float | None = None, low_open: bool = False) -> float:
+def check_number(
+    name: str,
+    value: Any,
+    low: float | None = None,
+    high: float | None = None,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
     """
-    A finite real number in ``[low, high]`` (``(low, high]`` with ``low_open``).
+    A finite real number in ``[low, high]``; ``low_open`` and ``high_open`` exclude the bound (the same helper as the
+    task package's ``sb3_maddpg_envs`` validation module).
 
     :param name: the argument's name
     :param value: the value given
     :param low: the lower bound (None: unbounded)
-    :param high: the upper bound, included (None: unbounded)
+    :param high: the upper bound (None: unbounded)
     :param low_open: exclude ``low``
+    :param high_open: exclude ``high``
     :return: the value as a float
     """
     ok = isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(float(value))
     if ok and low is not None:
         ok = float(value) > low if low_open else float(value) >= low
     if ok and high is not None:
-        ok = float(value) <= high
+        ok = float(value) < high if high_open else float(value) <= high
     if not ok:
         if low is not None and high is not None:
-            accepted = f"a number in {'(' if low_open else '['}{low:g}, {high:g}]"
+            accepted = f"a number in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
         elif low is not None:
             accepted = f"a finite number {'>' if low_open else '>='} {low:g}"
+        elif high is not None:
+            accepted = f"a finite number {'<' if high_open else '<='} {high:g}"
         else:
             accepted = "a finite number"
         raise ValueError(f"{name} must be {accepted}, got {value!r}")
@@ -167,67 +192,102 @@ def check_policy_arguments(
     check_optional_dict("optimizer_kwargs", optimizer_kwargs)
 
 
-def check_off_policy_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
+def check_vec_env(algorithm: str, env: Any) -> Any:
     """
-    Check the arguments of a multi-agent off-policy algorithm that SB3 would accept silently or let fail deep inside
-    (parameters as in ``MultiAgentOffPolicyAlgorithm``; ``policy_kwargs`` are checked again by the policy when it is
-    built).
+    ``env`` of a multi-agent off-policy algorithm: not a PettingZoo env, and (when given as an env) spaces it can
+    act in; the action noise is checked against the action space once the team is read
+    (``MultiAgentOffPolicyAlgorithm._check_action_noise``).
 
     :param algorithm: the algorithm's name, for the messages
-    :param arguments: argument name -> value
+    :param env: the value given
+    :return: the env
     """
-    from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
-
-    env = arguments["env"]
     if isinstance(env, ParallelEnv):
         raise TypeError(
             f"{algorithm} takes an SB3 VecEnv with one row per agent, not a PettingZoo ParallelEnv: "
             "wrap it with sb3_maddpg.make_multiagent_vec_env(env_fn, n_envs=...)"
         )
     if env is not None and not isinstance(env, str):
-        # action_noise against the action space: MultiAgentOffPolicyAlgorithm._check_action_noise, once the env is read
         check_action_space(env.action_space, algorithm)
     if env is not None and not isinstance(env, str) and not isinstance(env.observation_space, spaces.Box):
         raise TypeError(f"{algorithm} accepts Box observation spaces (vectors or images), got {env.observation_space}")
-    learning_rate = arguments["learning_rate"]
-    if not callable(learning_rate):
-        check_number("learning_rate", learning_rate, 0.0, low_open=True)
-    check_int("buffer_size", arguments["buffer_size"], 1)
-    check_int("batch_size", arguments["batch_size"], 1)
-    check_int("learning_starts", arguments["learning_starts"], 0)
-    check_number("tau", arguments["tau"], 0.0, 1.0)
-    check_number("gamma", arguments["gamma"], 0.0, 1.0)
-    _check_train_freq(arguments["train_freq"])
-    if check_int("gradient_steps", arguments["gradient_steps"], -1) == 0:
+    return env
+
+
+def check_learning_rate(name: str, value: Any) -> Any:
+    """
+    :param name: the argument's name (with what its default is, where it has one)
+    :param value: a number > 0 or a schedule (a callable), as given
+    :return: the value
+    """
+    if not callable(value):
+        check_number(name, value, low=0.0, low_open=True)
+    return value
+
+
+def check_gradient_steps(value: Any) -> int:
+    """
+    :param value: the value given (an integer >= 1, or -1)
+    :return: the value as an int
+    """
+    if check_int("gradient_steps", value, low=-1) == 0:
         raise ValueError("gradient_steps must be an integer >= 1, or -1 (as many as timesteps collected), got 0 (no update)")
-    check_bool("flush_denormals", arguments["flush_denormals"])
-    check_action_noise(arguments["action_noise"])
-    replay_buffer_class = arguments["replay_buffer_class"]
-    if replay_buffer_class is not None and not (
-        isinstance(replay_buffer_class, type) and issubclass(replay_buffer_class, MultiAgentReplayBuffer)
-    ):
+    return int(value)
+
+
+def check_replay_buffer_class(algorithm: str, value: Any) -> Any:
+    """
+    :param algorithm: the algorithm's name, for the message
+    :param value: None or the class given
+    :return: the value
+    """
+    from sb3_maddpg.common.buffers import MultiAgentReplayBuffer
+
+    if value is not None and not (isinstance(value, type) and issubclass(value, MultiAgentReplayBuffer)):
         raise TypeError(
             f"replay_buffer_class must be MultiAgentReplayBuffer or a subclass ({algorithm} samples joint transitions), "
-            f"got {replay_buffer_class!r}"
+            f"got {value!r}"
         )
-    check_optional_dict("replay_buffer_kwargs", arguments["replay_buffer_kwargs"])
-    check_int("stats_window_size", arguments["stats_window_size"], 1)
-    tensorboard_log = arguments["tensorboard_log"]
-    if tensorboard_log is not None and not isinstance(tensorboard_log, str | os.PathLike):
-        raise TypeError(f"tensorboard_log must be a folder path or None, got {tensorboard_log!r}")
-    policy_kwargs = check_optional_dict("policy_kwargs", arguments["policy_kwargs"])
+    return value
+
+
+def check_tensorboard_log(value: Any) -> Any:
+    """
+    :param value: None or a folder path
+    :return: the value
+    """
+    if value is not None and not isinstance(value, str | os.PathLike):
+        raise TypeError(f"tensorboard_log must be a folder path or None, got {value!r}")
+    return value
+
+
+def check_policy_kwargs(value: Any) -> dict[str, Any]:
+    """
+    ``policy_kwargs`` of an algorithm, where they enter: a dict of keyword arguments whose ``net_arch`` (the argument
+    SB3 would let fail deep inside) has the accepted form; the policy checks the others when it is built.
+
+    :param value: the value given
+    :return: the dict (empty for None)
+    """
+    policy_kwargs = check_optional_dict("policy_kwargs", value)
     if "net_arch" in policy_kwargs:
         check_net_arch(policy_kwargs["net_arch"])
-    check_int("verbose", arguments["verbose"], 0)
-    check_seed("seed", arguments["seed"])
-    device = arguments["device"]
-    if not isinstance(device, str | th.device):
-        raise TypeError(f"device must be 'auto', 'cpu', 'cuda', 'cuda:N' or a torch.device, got {device!r}")
-    if isinstance(device, str) and device != "auto":
+    return policy_kwargs
+
+
+def check_device(value: Any) -> Any:
+    """
+    :param value: the value given
+    :return: the value
+    """
+    if not isinstance(value, str | th.device):
+        raise TypeError(f"device must be 'auto', 'cpu', 'cuda', 'cuda:N' or a torch.device, got {value!r}")
+    if isinstance(value, str) and value != "auto":
         try:
-            th.device(device)
+            th.device(value)
         except RuntimeError as error:
-            raise ValueError(f"device must be 'auto', 'cpu', 'cuda', 'cuda:N' or a torch.device, got {device!r}") from error
+            raise ValueError(f"device must be 'auto', 'cpu', 'cuda', 'cuda:N' or a torch.device, got {value!r}") from error
+    return value
 
 
 # The parameters of SB3's noises (NormalActionNoise, OrnsteinUhlenbeckActionNoise) and DecayingGaussianNoise: attribute ->
@@ -241,15 +301,16 @@ _NOISE_PARAMETERS = {
 }
 
 
-def check_action_noise(action_noise: Any) -> None:
+def check_action_noise(action_noise: Any) -> Any:
     """
     ``action_noise``: None or an SB3 ``ActionNoise`` whose parameters are finite, its standard deviations >= 0 (NumPy
     would only refuse a negative sigma at the first noisy step, and a NaN one would make every action NaN).
 
     :param action_noise: the value given (a ``VectorizedActionNoise``: each row's noise is checked)
+    :return: the value
     """
     if action_noise is None:
-        return
+        return None
     if not isinstance(action_noise, ActionNoise):
         raise TypeError(f"action_noise must be an SB3 ActionNoise or None, got {action_noise!r}")
     for noise in getattr(action_noise, "noises", None) or [action_noise]:
@@ -264,69 +325,57 @@ def check_action_noise(action_noise: Any) -> None:
             if not np.isfinite(values).all() or (non_negative and (values < 0).any()):
                 accepted = "finite numbers >= 0" if non_negative else "finite numbers"
                 raise ValueError(f"action_noise: {type(noise).__name__}'s {name} must be {accepted}, got {value!r}")
+    return action_noise
 
 
-def check_maddpg_arguments(algorithm: str, arguments: dict[str, Any]) -> None:
+def check_cvar_alpha(value: Any) -> float:
     """
-    Check the arguments that MADDPG (and MATD3, built on it) adds to the off-policy ones (parameters as in ``MADDPG``).
-
-    :param algorithm: the algorithm's name, for the messages
-    :param arguments: argument name -> value
+    :param value: the CVaR level given, in (0, 1]
+    :return: the value as a float
     """
-    cvar_alpha = arguments["cvar_alpha"]
-    if isinstance(cvar_alpha, bool) or not isinstance(cvar_alpha, Real) or not 0.0 < cvar_alpha <= 1.0:
-        raise ValueError(f"cvar_alpha must be a number in (0, 1] (1 = risk-neutral mean), got {cvar_alpha!r}")
-    check_int("cvar_alpha_anneal_steps (0: no annealing)", arguments["cvar_alpha_anneal_steps"], 0)
-    if arguments["cvar_alpha_anneal_steps"] > 0 and arguments["cuda_graph"]:
-        raise ValueError(
-            "cvar_alpha_anneal_steps changes the risk level as training goes, which a CUDA graph cannot follow (it "
-            "records one): leave cuda_graph=False or cvar_alpha_anneal_steps=0"
-        )
-    check_bool("share_actor", arguments["share_actor"])
-    check_groups(arguments["groups"])
-    if arguments["groups"] is not None and arguments["share_actor"]:
-        raise ValueError("share_actor=True shares one actor between all agents; give groups or share_actor, not both")
-    policy_kwargs = arguments["policy_kwargs"]
-    if isinstance(policy_kwargs, dict) and "share_actor" in policy_kwargs:
-        raise ValueError(
-            f"share_actor is an argument of {algorithm}, not a policy kwarg: use {algorithm}(..., share_actor=True)"
-        )
-    if isinstance(policy_kwargs, dict) and "mean_anchored_quantiles" in policy_kwargs:
-        raise ValueError(
-            f"mean_anchored_quantiles is an argument of {algorithm} (it sets the loss and the critics' mean head), "
-            f"not a policy kwarg: use {algorithm}(..., mean_anchored_quantiles=True)"
-        )
-    check_number("actor_reg (0 turns the penalty off)", arguments["actor_reg"], 0.0)
-    check_number(
-        "gumbel_temperature (the Gumbel-softmax temperature, default 1.0)", arguments["gumbel_temperature"], 0.0, low_open=True
-    )
-    check_bool("mean_anchored_quantiles", arguments["mean_anchored_quantiles"])
-    if arguments["mean_loss"] not in ("huber", "squared"):
-        raise ValueError(
-            f"mean_loss must be 'huber' (the default) or 'squared' (the squared TD error), got {arguments['mean_loss']!r}"
-        )
-    check_bool("cuda_graph", arguments["cuda_graph"])
-    check_bool("bf16_autocast", arguments["bf16_autocast"])
-    check_bool("compile_quantile_loss", arguments["compile_quantile_loss"])
-    check_int("policy_delay", arguments["policy_delay"], 1)
-    check_int("critic_warmup_steps", arguments["critic_warmup_steps"], 0)
-    if arguments["max_grad_norm"] is not None:
-        check_number("max_grad_norm (None for no clipping)", arguments["max_grad_norm"], low=0.0, low_open=True)
-    check_number("target_policy_noise", arguments["target_policy_noise"], low=0.0)
-    check_number("target_noise_clip", arguments["target_noise_clip"], low=0.0)
-    actor_learning_rate = arguments["actor_learning_rate"]
-    if actor_learning_rate is not None and not callable(actor_learning_rate):
-        check_number("actor_learning_rate (None: learning_rate; or a schedule)", actor_learning_rate, low=0.0, low_open=True)
+    if isinstance(value, bool) or not isinstance(value, Real) or not 0.0 < value <= 1.0:
+        raise ValueError(f"cvar_alpha must be a number in (0, 1] (1 = risk-neutral mean), got {value!r}")
+    return float(value)
 
 
-def _check_train_freq(train_freq: Any) -> None:
+def check_actor_learning_rate(value: Any) -> Any:
+    """
+    :param value: None (the actors take ``learning_rate``), a number > 0 or a schedule
+    :return: the value
+    """
+    return None if value is None else check_learning_rate("actor_learning_rate (None: learning_rate; or a schedule)", value)
+
+
+def check_max_grad_norm(value: Any) -> float | None:
+    """
+    :param value: None (no clipping) or a number > 0
+    :return: the value (a float, or None)
+    """
+    return None if value is None else check_number("max_grad_norm (None for no clipping)", value, low=0.0, low_open=True)
+
+
+def check_mean_loss(value: Any) -> str:
+    """
+    :param value: the loss of the critics' mean given
+    :return: the value
+    """
+    if value not in ("huber", "squared"):
+        raise ValueError(f"mean_loss must be 'huber' (the default) or 'squared' (the squared TD error), got {value!r}")
+    return value
+
+
+def check_train_freq(train_freq: Any) -> Any:
+    """
+    :param train_freq: the value given: VecEnv steps, or a tuple (k, "step" or "episode")
+    :return: the value
+    """
     accepted = "an integer >= 1 (VecEnv steps) or a tuple (k >= 1, 'step' or 'episode')"
     if isinstance(train_freq, tuple) and len(train_freq) == 2:
         frequency, unit = train_freq
         unit = getattr(unit, "value", unit)  # SB3's TrainFrequencyUnit
         if unit in ("step", "episode") and not isinstance(frequency, bool) and isinstance(frequency, Integral):
             if frequency >= 1:
-                return
+                return train_freq
     elif not isinstance(train_freq, bool) and isinstance(train_freq, Integral) and train_freq >= 1:
-        return
+        return train_freq
     raise ValueError(f"train_freq must be {accepted}, got {train_freq!r}")

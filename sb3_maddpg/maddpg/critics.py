@@ -399,8 +399,8 @@ class AttentionQuantileCritic(QuantileCriticBase):
 
 def check_attention_arguments(embed_dim: Any, n_heads: Any) -> None:
     """The attention critic's own arguments: ``embed_dim`` and ``n_heads`` positive integers, heads dividing E."""
-    check_int("embed_dim", embed_dim, 1)
-    check_int("n_heads", n_heads, 1)
+    check_int("embed_dim", embed_dim, low=1)
+    check_int("n_heads", n_heads, low=1)
     if int(embed_dim) % int(n_heads) != 0:
         raise ValueError(f"the attention critic's embed_dim ({embed_dim}) must be a multiple of n_heads ({n_heads})")
 

@@ -18,11 +18,19 @@ from sb3_maddpg.common.buffers import MultiAgentReplayBufferSamples
 from sb3_maddpg.common.diagnostics import own_action_candidates, own_action_value_range
 from sb3_maddpg.common.distributional import cvar, mean_anchored_quantile_loss, quantile_huber_loss
 from sb3_maddpg.common.graphed_update import GraphedUpdate, set_learning_rate
-from sb3_maddpg.common.groups import agent_groups
+from sb3_maddpg.common.groups import agent_groups, check_groups
 from sb3_maddpg.common.model_files import MADDPG_KEYS
 from sb3_maddpg.common.noise import current_noise_std
 from sb3_maddpg.common.off_policy_algorithm import MultiAgentOffPolicyAlgorithm
-from sb3_maddpg.common.validation import check_maddpg_arguments
+from sb3_maddpg.common.validation import (
+    check_actor_learning_rate,
+    check_bool,
+    check_cvar_alpha,
+    check_int,
+    check_max_grad_norm,
+    check_mean_loss,
+    check_number,
+)
 from sb3_maddpg.maddpg.critics import QuantileCriticBase
 from sb3_maddpg.maddpg.gradient_step import GradientStepStats, batch_mean
 from sb3_maddpg.maddpg.policies import CnnPolicy, MADDPGPolicy, MlpPolicy, MultiAgentActor
@@ -199,29 +207,6 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ) -> None:
-        check_maddpg_arguments(
-            type(self).__name__,
-            dict(
-                cvar_alpha=cvar_alpha,
-                cvar_alpha_anneal_steps=cvar_alpha_anneal_steps,
-                actor_reg=actor_reg,
-                policy_delay=policy_delay,
-                critic_warmup_steps=critic_warmup_steps,
-                actor_learning_rate=actor_learning_rate,
-                max_grad_norm=max_grad_norm,
-                target_policy_noise=target_policy_noise,
-                target_noise_clip=target_noise_clip,
-                gumbel_temperature=gumbel_temperature,
-                mean_anchored_quantiles=mean_anchored_quantiles,
-                mean_loss=mean_loss,
-                share_actor=share_actor,
-                groups=groups,
-                cuda_graph=cuda_graph,
-                bf16_autocast=bf16_autocast,
-                compile_quantile_loss=compile_quantile_loss,
-                policy_kwargs=policy_kwargs,
-            ),
-        )
         super().__init__(
             policy,
             env,
@@ -245,31 +230,55 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             seed=seed,
             flush_denormals=flush_denormals,
         )
-        self.cvar_alpha = float(cvar_alpha)
-        self.cvar_alpha_anneal_steps = int(cvar_alpha_anneal_steps)
-        self.actor_reg = float(actor_reg)
-        self.policy_delay = int(policy_delay)
-        self.critic_warmup_steps = int(critic_warmup_steps)
-        self.actor_learning_rate = actor_learning_rate
-        self.max_grad_norm = None if max_grad_norm is None else float(max_grad_norm)
-        self.target_policy_noise = float(target_policy_noise)
-        self.target_noise_clip = float(target_noise_clip)
-        self.gumbel_temperature = float(gumbel_temperature)
-        self.mean_anchored_quantiles = mean_anchored_quantiles
-        self.mean_loss = mean_loss
-        self.share_actor = share_actor
-        self.groups = groups
-        if cuda_graph and self.device.type != "cuda":
+        # Each argument checked where it is stored, then the combinations; before any network is built
+        self.cvar_alpha = check_cvar_alpha(cvar_alpha)
+        self.cvar_alpha_anneal_steps = check_int("cvar_alpha_anneal_steps (0: no annealing)", cvar_alpha_anneal_steps, low=0)
+        self.actor_reg = check_number("actor_reg (0 turns the penalty off)", actor_reg, low=0.0)
+        self.policy_delay = check_int("policy_delay", policy_delay, low=1)
+        self.critic_warmup_steps = check_int("critic_warmup_steps", critic_warmup_steps, low=0)
+        self.actor_learning_rate = check_actor_learning_rate(actor_learning_rate)
+        self.max_grad_norm = check_max_grad_norm(max_grad_norm)
+        self.target_policy_noise = check_number("target_policy_noise", target_policy_noise, low=0.0)
+        self.target_noise_clip = check_number("target_noise_clip", target_noise_clip, low=0.0)
+        self.gumbel_temperature = check_number(
+            "gumbel_temperature (the Gumbel-softmax temperature, default 1.0)", gumbel_temperature, low=0.0, low_open=True
+        )
+        self.mean_anchored_quantiles = check_bool("mean_anchored_quantiles", mean_anchored_quantiles)
+        self.mean_loss = check_mean_loss(mean_loss)
+        self.share_actor = check_bool("share_actor", share_actor)
+        self.groups = check_groups(groups)
+        self.cuda_graph = check_bool("cuda_graph", cuda_graph)
+        self.bf16_autocast = check_bool("bf16_autocast", bf16_autocast)
+        self.compile_quantile_loss = check_bool("compile_quantile_loss", compile_quantile_loss)
+        self._check_argument_combinations()
+
+        if _init_setup_model:
+            self._setup_model()
+
+    def _check_argument_combinations(self) -> None:
+        """Refuse arguments that are each accepted but not together (or that belong to the algorithm, not the policy)."""
+        algorithm = type(self).__name__
+        if self.cvar_alpha_anneal_steps > 0 and self.cuda_graph:
+            raise ValueError(
+                "cvar_alpha_anneal_steps changes the risk level as training goes, which a CUDA graph cannot follow (it "
+                "records one): leave cuda_graph=False or cvar_alpha_anneal_steps=0"
+            )
+        if self.groups is not None and self.share_actor:
+            raise ValueError("share_actor=True shares one actor between all agents; give groups or share_actor, not both")
+        if "share_actor" in self.policy_kwargs:
+            raise ValueError(
+                f"share_actor is an argument of {algorithm}, not a policy kwarg: use {algorithm}(..., share_actor=True)"
+            )
+        if "mean_anchored_quantiles" in self.policy_kwargs:
+            raise ValueError(
+                f"mean_anchored_quantiles is an argument of {algorithm} (it sets the loss and the critics' mean head), "
+                f"not a policy kwarg: use {algorithm}(..., mean_anchored_quantiles=True)"
+            )
+        if self.cuda_graph and self.device.type != "cuda":
             raise ValueError(
                 f"cuda_graph=True records the update as a CUDA graph and needs device='cuda', got device={self.device!s}; "
                 "leave cuda_graph=False on other devices"
             )
-        self.cuda_graph = cuda_graph
-        self.bf16_autocast = bf16_autocast
-        self.compile_quantile_loss = compile_quantile_loss
-
-        if _init_setup_model:
-            self._setup_model()
 
     def _policy_arguments(self) -> dict[str, Any]:
         assert self.agent_names is not None

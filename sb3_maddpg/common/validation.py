@@ -13,8 +13,6 @@ import torch as th
 from gymnasium import spaces
 from pettingzoo.utils.env import ParallelEnv
 from stable_baselines3.common.noise import ActionNoise
-from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
-from torch import nn
 
 from sb3_maddpg.common.actions import check_action_space
 
@@ -134,22 +132,24 @@ def check_seed(name: str, value: Any) -> int | None:
     return int(value)
 
 
-def check_net_arch(value: Any) -> None:
+def check_net_arch(value: Any) -> Any:
     """
     ``net_arch`` of a MADDPG policy: a list of positive layer sizes, or a dict with lists ``pi`` and ``qf``.
 
     :param value: the value given (None: the default)
+    :return: the value
     """
     if value is None:
-        return
+        return None
     if isinstance(value, dict):
         unknown = sorted(set(value) - {"pi", "qf"})
         if unknown or not {"pi", "qf"} <= set(value):
             raise ValueError(f"net_arch as a dict must have exactly the keys 'pi' (actors) and 'qf' (critics), got {value!r}")
         for key in ("pi", "qf"):
             _check_layer_sizes(f"net_arch[{key!r}]", value[key])
-        return
+        return value
     _check_layer_sizes("net_arch", value)
+    return value
 
 
 def _check_layer_sizes(name: str, sizes: Any) -> None:
@@ -159,37 +159,6 @@ def _check_layer_sizes(name: str, sizes: Any) -> None:
         raise ValueError(
             f"{name} must be a list of hidden layer sizes, each an integer >= 1 (e.g. [64, 64]; [] for none), got {sizes!r}"
         )
-
-
-def check_policy_arguments(
-    n_agents: Any,
-    share_actor: Any,
-    share_features_extractor: Any,
-    n_quantiles: Any,
-    n_critics: Any,
-    net_arch: Any,
-    activation_fn: Any,
-    features_extractor_class: Any,
-    features_extractor_kwargs: Any,
-    normalize_images: Any,
-    optimizer_class: Any,
-    optimizer_kwargs: Any,
-) -> None:
-    """
-    Check the arguments of ``MADDPGPolicy`` (parameters as there).
-    """
-    check_int("n_agents", n_agents, 1)
-    check_bool("share_actor", share_actor)
-    check_bool("share_features_extractor", share_features_extractor)
-    check_int("n_quantiles", n_quantiles, 1)
-    check_int("n_critics", n_critics, 1)
-    check_net_arch(net_arch)
-    check_subclass("activation_fn", activation_fn, nn.Module)
-    check_subclass("features_extractor_class", features_extractor_class, BaseFeaturesExtractor)
-    check_optional_dict("features_extractor_kwargs", features_extractor_kwargs)
-    check_bool("normalize_images", normalize_images)
-    check_subclass("optimizer_class", optimizer_class, th.optim.Optimizer)
-    check_optional_dict("optimizer_kwargs", optimizer_kwargs)
 
 
 def check_vec_env(algorithm: str, env: Any) -> Any:

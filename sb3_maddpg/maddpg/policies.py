@@ -12,7 +12,7 @@ from torch import nn
 from sb3_maddpg.common.actions import action_width, check_action_space, gumbel_max_sample, is_discrete, one_hot_argmax
 from sb3_maddpg.common.agent_spaces import AgentSpaces
 from sb3_maddpg.common.torch_layers import BatchedMlp, MultiAgentFeatures, ReportCNN
-from sb3_maddpg.common.validation import check_policy_arguments
+from sb3_maddpg.common.validation import check_bool, check_int, check_net_arch, check_optional_dict, check_subclass
 from sb3_maddpg.maddpg.critics import CRITICS, QuantileCriticBase, check_attention_arguments
 
 # The logit of a padded Discrete action: exp(-1e4) is 0 in every float type, and it stays finite (no inf - inf)
@@ -227,64 +227,48 @@ class MADDPGPolicy(BasePolicy):
         if not isinstance(observation_space, spaces.Box):
             raise TypeError(f"MADDPGPolicy accepts a Box observation space (vector or image), got {observation_space}")
         check_action_space(action_space, "MADDPGPolicy")
-        check_policy_arguments(
-            n_agents,
-            share_actor,
-            share_features_extractor,
-            n_quantiles,
-            n_critics,
-            net_arch,
-            activation_fn,
-            features_extractor_class,
-            features_extractor_kwargs,
-            normalize_images,
-            optimizer_class,
-            optimizer_kwargs,
-        )
         self.critic_class, self.critic_design_kwargs = _check_critic(critic, critic_kwargs)
-        n_quantiles, n_critics, n_agents = int(n_quantiles), int(n_critics), int(n_agents)
+        # As in the algorithms: what SB3's BasePolicy stores is checked as it is handed over, the rest where it is stored
         super().__init__(
             observation_space,
             action_space,
-            features_extractor_class,
-            features_extractor_kwargs,
-            optimizer_class=optimizer_class,
-            optimizer_kwargs=optimizer_kwargs,
+            check_subclass("features_extractor_class", features_extractor_class, BaseFeaturesExtractor),
+            check_optional_dict("features_extractor_kwargs", features_extractor_kwargs),
+            optimizer_class=check_subclass("optimizer_class", optimizer_class, th.optim.Optimizer),
+            optimizer_kwargs=check_optional_dict("optimizer_kwargs", optimizer_kwargs),
             # The tanh output is rescaled to a Box's bounds; Discrete actions are integers
             squash_output=isinstance(action_space, spaces.Box),
-            normalize_images=normalize_images,
+            normalize_images=check_bool("normalize_images", normalize_images),
         )
-        if net_arch is None:
-            net_arch = [64, 64]
-        actor_arch, critic_arch = get_actor_critic_arch(net_arch)
-        self.net_arch = net_arch
-        self.activation_fn = activation_fn
-        self.n_agents = n_agents
-        self.share_actor = share_actor
-        self.share_features_extractor = share_features_extractor
-        self.n_quantiles = n_quantiles
-        self.n_critics = n_critics
+        self.n_agents = n_agents = check_int("n_agents", n_agents, low=1)
+        self.share_actor = check_bool("share_actor", share_actor)
+        self.share_features_extractor = check_bool("share_features_extractor", share_features_extractor)
+        self.n_quantiles = check_int("n_quantiles", n_quantiles, low=1)
+        self.n_critics = check_int("n_critics", n_critics, low=1)
+        self.net_arch = [64, 64] if net_arch is None else check_net_arch(net_arch)
+        self.activation_fn = check_subclass("activation_fn", activation_fn, nn.Module)
         self.agent_spaces = agent_spaces
         self.mean_anchored_quantiles = mean_anchored_quantiles
         self.critic_name = critic
-        self.agent_groups = _check_agent_groups(agent_groups, n_agents, share_actor)
+        self.agent_groups = _check_agent_groups(agent_groups, n_agents, self.share_actor)
         observation_mask, action_mask = _padding_masks(agent_spaces, observation_space, action_space, n_agents)
         common = dict(
             observation_space=observation_space,
             action_space=action_space,
             n_agents=n_agents,
-            activation_fn=activation_fn,
-            features_extractor_class=features_extractor_class,
+            activation_fn=self.activation_fn,
+            features_extractor_class=self.features_extractor_class,
             features_extractor_kwargs=self.features_extractor_kwargs,
-            normalize_images=normalize_images,
+            normalize_images=self.normalize_images,
         )
         masks = dict(observation_mask=observation_mask, action_mask=action_mask, agent_groups=self.agent_groups)
-        self.actor_kwargs = dict(common, net_arch=actor_arch, shared=share_actor, **masks)
+        actor_arch, critic_arch = get_actor_critic_arch(self.net_arch)
+        self.actor_kwargs = dict(common, net_arch=actor_arch, shared=self.share_actor, **masks)
         self.critic_kwargs = dict(
             common,
             net_arch=critic_arch,
-            n_quantiles=n_quantiles,
-            n_critics=n_critics,
+            n_quantiles=self.n_quantiles,
+            n_critics=self.n_critics,
             mean_head=mean_anchored_quantiles,
             **masks,
             **self.critic_design_kwargs,

@@ -331,8 +331,7 @@ class MultiAgentOffPolicyAlgorithm(MultiAgentTeam, SavedMultiAgentModel, OffPoli
         self.policy.set_training_mode(False)
 
         num_collected_steps, num_collected_episodes = 0, 0
-        n_copies, n_agents = self.n_copies, self.n_agents
-        assert n_agents is not None
+        n_copies = self.n_copies
 
         assert isinstance(env, VecEnv), "You must pass a VecEnv"
         assert train_freq.frequency > 0, "Should at least collect one step or episode."
@@ -367,21 +366,39 @@ class MultiAgentOffPolicyAlgorithm(MultiAgentTeam, SavedMultiAgentModel, OffPoli
             self._update_current_progress_remaining(self.num_timesteps, self._total_timesteps)
             self._on_step()
 
-            for copy in np.flatnonzero(np.asarray(dones).reshape(n_copies, n_agents).any(axis=1)):
-                # Update stats: one episode per copy
-                num_collected_episodes += 1
-                self._episode_num += 1
-
-                if action_noise is not None:
-                    kwargs = dict(indices=list(range(copy * n_agents, (copy + 1) * n_agents))) if env.num_envs > 1 else {}
-                    action_noise.reset(**kwargs)
-
-                # Log training infos
-                if log_interval is not None and self._episode_num % log_interval == 0:
-                    self.dump_logs()
+            # Update stats, reset the noise and log: one episode per copy
+            num_collected_episodes += self._on_episode_ends(dones, action_noise, env.num_envs, log_interval)
         callback.on_rollout_end()
 
         return RolloutReturn(num_collected_steps * n_copies, num_collected_episodes, continue_training)
+
+    def _on_episode_ends(
+        self, dones: np.ndarray, action_noise: ActionNoise | None, n_rows: int, log_interval: int | None
+    ) -> int:
+        """
+        The end-of-episode bookkeeping of SB3's ``collect_rollouts``, once per env copy whose episode ended (SB3 would
+        do it once per agent row): the episode count, the reset of the copy's rows of the action noise, the logs.
+
+        :param dones: the VecEnv step's done flags, one per row
+        :param action_noise: action noise for exploration
+        :param n_rows: number of VecEnv rows
+        :param log_interval: log data every ``log_interval`` episodes
+        :return: the number of episodes that ended
+        """
+        n_agents = self.n_agents
+        assert n_agents is not None
+        ended = np.flatnonzero(np.asarray(dones).reshape(self.n_copies, n_agents).any(axis=1))
+        for copy in ended:
+            self._episode_num += 1
+
+            if action_noise is not None:
+                kwargs = dict(indices=list(range(copy * n_agents, (copy + 1) * n_agents))) if n_rows > 1 else {}
+                action_noise.reset(**kwargs)
+
+            # Log training infos
+            if log_interval is not None and self._episode_num % log_interval == 0:
+                self.dump_logs()
+        return len(ended)
 
     def _store_transition(
         self,

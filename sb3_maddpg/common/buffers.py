@@ -238,17 +238,8 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         :param done: (n_copies * n_agents,) episode ended (terminated or truncated)
         :param infos: one dict per row; ``TimeLimit.truncated`` marks truncations
         """
-        copies, agents = self.n_copies, self.n_agents
-        obs = np.asarray(obs).reshape(copies, agents, *self.obs_shape).astype(self._obs_np_dtype, copy=False)
-        next_obs = np.asarray(next_obs).reshape(copies, agents, *self.obs_shape).astype(self._obs_np_dtype, copy=False)
-        action = np.asarray(action)
-        if is_discrete(self.action_space) and action.size == copies * agents and action.dtype.kind in "iu":
-            action = one_hot(action, self.action_space)  # type: ignore[arg-type]
-        action = action.reshape(copies, agents, self.action_dim).astype(self._action_np_dtype, copy=False)
-        reward = np.asarray(reward).reshape(copies, agents).astype(np.float32, copy=False)
-        copy_done = np.asarray(done).reshape(copies, agents).any(axis=1)
-        truncated = np.array([info.get("TimeLimit.truncated", False) for info in infos], dtype=bool)
-        copy_timeout = truncated.reshape(copies, agents).any(axis=1)
+        copies = self.n_copies
+        obs, next_obs, action, reward, copy_done, copy_timeout = self._joint_step(obs, next_obs, action, reward, done, infos)
 
         had_pending, prev = self._has_pending, (self.pos - 1) % self.buffer_size
         lost = np.zeros(0, dtype=np.int64)
@@ -301,6 +292,34 @@ class MultiAgentReplayBuffer(ReplayBuffer):
         if self.pos == self.buffer_size:
             self.full = True
             self.pos = 0
+
+    def _joint_step(
+        self,
+        obs: np.ndarray,
+        next_obs: np.ndarray,
+        action: np.ndarray,
+        reward: np.ndarray,
+        done: np.ndarray,
+        infos: list[dict[str, Any]],
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """
+        A VecEnv step's rows (parameters as in ``add``) as one joint transition per copy, in the storage dtypes.
+
+        :return: obs and next_obs (n_copies, n_agents, *obs_shape), action (n_copies, n_agents, action_dim), reward
+            (n_copies, n_agents), and per copy whether its episode ended and whether it was a truncation
+        """
+        copies, agents = self.n_copies, self.n_agents
+        obs = np.asarray(obs).reshape(copies, agents, *self.obs_shape).astype(self._obs_np_dtype, copy=False)
+        next_obs = np.asarray(next_obs).reshape(copies, agents, *self.obs_shape).astype(self._obs_np_dtype, copy=False)
+        action = np.asarray(action)
+        if is_discrete(self.action_space) and action.size == copies * agents and action.dtype.kind in "iu":
+            action = one_hot(action, self.action_space)  # type: ignore[arg-type]
+        action = action.reshape(copies, agents, self.action_dim).astype(self._action_np_dtype, copy=False)
+        reward = np.asarray(reward).reshape(copies, agents).astype(np.float32, copy=False)
+        copy_done = np.asarray(done).reshape(copies, agents).any(axis=1)
+        truncated = np.array([info.get("TimeLimit.truncated", False) for info in infos], dtype=bool)
+        copy_timeout = truncated.reshape(copies, agents).any(axis=1)
+        return obs, next_obs, action, reward, copy_done, copy_timeout
 
     def _claim_rows(self, slot: int, copies: np.ndarray) -> np.ndarray:
         """

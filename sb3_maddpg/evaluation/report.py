@@ -350,16 +350,46 @@ def evaluate_and_report(
         task's, :class:`~sb3_maddpg.evaluation.metrics.TaskMetrics`)
     :raises ModelEnvMismatchError: if the model does not fit the env (``OpponentEnvMismatchError``: the opponent)
     """
-    from sb3_maddpg.zoo.registry import make_multiagent_env
-
     target = evaluation_env(model_path, env_id, env_kwargs)
     check_writable_folder(out_dir, "out_dir")
-    env_id, kwargs, render_mode, max_cycles = target.env_id, target.kwargs, target.render_mode, target.max_cycles
-    check_state_steps(state_steps, max_cycles)
+    check_state_steps(state_steps, target.max_cycles)
+    controllers = _evaluation_controllers(target, model_path, device, baselines, team, opponent)
+    results, record, record_name = _run_episodes(
+        target, controllers, model_path is not None, n_episodes, seed, state_steps, frame_every, verbose, progress
+    )
+    summary = summarize(results)
+    table = format_table(summary, target.metrics)
+    if verbose:
+        print(f"{target.env_id} {target.kwargs}, {n_episodes} episode(s) per method, seeds {seed}..{seed + n_episodes - 1}")
+        print(table)
+    files = _write_files(Path(out_dir), target, results, summary, model_path, n_episodes, seed, record, record_name, gif)
+    if verbose:
+        print(f"Results and figures written to {Path(out_dir)}")
+    return {
+        "summary": summary,
+        "results": results,
+        "table": table,
+        "files": files,
+        "env_kwargs": target.kwargs,
+        "metrics": target.metrics,
+    }
 
+
+def _evaluation_controllers(
+    target: EvaluationEnv,
+    model_path: str | os.PathLike | None,
+    device: str,
+    baselines: Sequence[str] | None,
+    team: str | None,
+    opponent: str | os.PathLike,
+) -> list[Controller]:
+    """
+    The methods ``evaluate_and_report`` runs (parameters as there): the model (with ``team``: the model's team
+    against the opponent, and random actions against the same opponent), then the baselines.
+    """
     controllers: list[Controller] = []
     if model_path is not None:
-        own_model = _load_controller(model_path, env_id, kwargs, device)
+        own_model = _load_controller(model_path, target.env_id, target.kwargs, device)
         own_model.name = type(own_model.model).__name__.lower()
         controllers.append(own_model)
     if team is not None:
@@ -367,7 +397,9 @@ def evaluate_and_report(
             raise ValueError("team= needs a model to act for the team")
         try:
             rival = (
-                RandomController() if os.fspath(opponent) == "random" else _load_controller(opponent, env_id, kwargs, device)
+                RandomController()
+                if os.fspath(opponent) == "random"
+                else _load_controller(opponent, target.env_id, target.kwargs, device)
             )
         except ModelEnvMismatchError as error:
             raise OpponentEnvMismatchError(str(error)) from error
@@ -379,17 +411,37 @@ def evaluate_and_report(
     controllers.extend(make_baselines(baselines, target.tools))
     if not controllers:
         raise ValueError("nothing to evaluate: give a model or at least one baseline")
-    names = [controller.name for controller in controllers]
-    # The recorded episode: the model's, else that of the task's first default baseline run (on the UAV envs the
-    # static placement's, the report's figures), else the first baseline's
-    task_defaults = [name for name in target.tools.default_baselines if name in names]
-    record_name = names[0] if model_path is not None or not task_defaults else task_defaults[0]
+    return controllers
 
+
+def _run_episodes(
+    target: EvaluationEnv,
+    controllers: list[Controller],
+    with_model: bool,
+    n_episodes: int,
+    seed: int,
+    state_steps: Sequence[int] | None,
+    frame_every: int | None,
+    verbose: int,
+    progress: bool,
+) -> tuple[Any, Any, str]:
+    """
+    The episodes of ``evaluate_and_report`` (parameters as there), one method's first episode recorded: the model's
+    (``with_model``: the first controller is the model), else that of the task's first default baseline run (on the
+    UAV envs the static placement's, the report's figures), else the first baseline's.
+
+    :return: ``evaluate_controllers``' results and recorded episode, and the recorded method's name
+    """
+    from sb3_maddpg.zoo.registry import make_multiagent_env
+
+    names = [controller.name for controller in controllers]
+    task_defaults = [name for name in target.tools.default_baselines if name in names]
+    record_name = names[0] if with_model or not task_defaults else task_defaults[0]
+    env_id, kwargs, render_mode, max_cycles = target.env_id, target.kwargs, target.render_mode, target.max_cycles
     if state_steps is None:
         state_steps = sorted({0, max_cycles // 2, max_cycles}) if target.tools.state_images else []
     if frame_every is None:
         frame_every = max(1, (max_cycles or 100) // 100)
-
     with episode_progress(len(controllers) * n_episodes, "evaluate", progress) as advance:
         results, record = evaluate_controllers(
             lambda: make_multiagent_env(env_id, render_mode=render_mode, **kwargs),
@@ -402,16 +454,32 @@ def evaluate_and_report(
             verbose=int(verbose >= 2),
             on_episode=advance,
         )
-    summary = summarize(results)
-    table = format_table(summary, target.metrics)
-    if verbose:
-        print(f"{env_id} {kwargs}, {n_episodes} episode(s) per method, seeds {seed}..{seed + n_episodes - 1}")
-        print(table)
+    return results, record, record_name
 
-    out = Path(out_dir)
+
+def _write_files(
+    out: Path,
+    target: EvaluationEnv,
+    results: Any,
+    summary: Any,
+    model_path: str | os.PathLike | None,
+    n_episodes: int,
+    seed: int,
+    record: Any,
+    record_name: str,
+    gif: bool,
+) -> dict[str, Path]:
+    """
+    The files of ``evaluate_and_report`` (parameters as there): the results' tables, the returns of each episode, the
+    task's episode-end values, and the recorded episode's figures (its GIF with ``gif``).
+
+    :param record: the recorded episode, or None
+    :param record_name: its method's name
+    :return: file name -> path
+    """
     metadata = {
-        "env_id": env_id,
-        "env_kwargs": kwargs,
+        "env_id": target.env_id,
+        "env_kwargs": target.kwargs,
         "model": None if model_path is None else os.fspath(model_path),
         "n_episodes": n_episodes,
         "seed": seed,
@@ -430,16 +498,7 @@ def evaluate_and_report(
             record.frames.clear()
         for path in save_episode_figures(record, figures, prefix=f"{record_name}_"):
             files[path.name] = path
-    if verbose:
-        print(f"Results and figures written to {out}")
-    return {
-        "summary": summary,
-        "results": results,
-        "table": table,
-        "files": files,
-        "env_kwargs": kwargs,
-        "metrics": target.metrics,
-    }
+    return files
 
 
 def training_log_metrics(log_path: str | os.PathLike, env_id: str | None = None) -> TaskMetrics | None:

@@ -211,33 +211,11 @@ def build_repo_folder(
     :param verbose: 0 quiet, 1 the evaluation's table
     :return: name -> path of each file of the repository
     """
-    from sb3_maddpg.common.model_files import read_maddpg_data
-    from sb3_maddpg.evaluation.report import evaluate_and_report, read_run_yaml, run_params_dir, saved_algorithm
-    from sb3_maddpg.zoo.run_files import check_run_folder
+    from sb3_maddpg.evaluation.report import evaluate_and_report, read_run_yaml
 
-    params_dir = run_params_dir(model_path)
-    if params_dir is None or params_dir.name != env_id:
-        raise UsageError(f"{os.fspath(model_path)} is not in an RL Zoo run folder of {env_id} (<run>/{env_id}/args.yml)")
-    check_run_folder(params_dir)
-    try:
-        data = read_maddpg_data(model_path, ("policy_class", "n_agents", "num_timesteps", "observation_space", "action_space"))
-    except (ValueError, FileNotFoundError) as error:
-        raise UsageError(str(error)) from error
-    algorithm = saved_algorithm(data["policy_class"]).__name__
-    if algorithm.lower() != algo:
-        raise UsageError(
-            f"{os.fspath(model_path)} is a {algorithm} model, not a {algo.upper()} one: pass --algo {algorithm.lower()}"
-        )
-
-    name = model_name(algo, env_id)
+    params_dir, data, algorithm = _read_run_model(model_path, algo, env_id)
     out = Path(local_dir)
-    _prepare_folder(out, f"{name}.zip")
-    shutil.copyfile(model_path, out / f"{name}.zip")
-    for file in ("config.yml", "args.yml"):
-        shutil.copyfile(params_dir / file, out / file)
-    if (params_dir / "vecnormalize.pkl").is_file():
-        shutil.copyfile(params_dir / "vecnormalize.pkl", out / VEC_NORMALIZE)
-    _metrics_archive(params_dir.parent, out / "train_eval_metrics.zip")
+    _copy_run_files(model_path, params_dir, out, model_name(algo, env_id))
 
     evaluation = evaluate_and_report(
         out / EVALUATION,
@@ -273,6 +251,47 @@ def build_repo_folder(
     )
     (out / "README.md").write_text(card)
     return {path.relative_to(out).as_posix(): path for path in sorted(out.rglob("*")) if path.is_file()}
+
+
+def _read_run_model(model_path: str | os.PathLike, algo: str, env_id: str) -> tuple[Path, dict[str, Any], str]:
+    """
+    The run folder of a model to push, and what the card needs of the model, refusing a model outside a run folder of
+    ``env_id`` or of another algorithm than ``algo`` (parameters as in ``build_repo_folder``).
+
+    :return: the run's parameter folder (``<run>/<env_id>``), the model's saved data and its algorithm's class name
+    """
+    from sb3_maddpg.common.model_files import read_maddpg_data
+    from sb3_maddpg.evaluation.report import run_params_dir, saved_algorithm
+    from sb3_maddpg.zoo.run_files import check_run_folder
+
+    params_dir = run_params_dir(model_path)
+    if params_dir is None or params_dir.name != env_id:
+        raise UsageError(f"{os.fspath(model_path)} is not in an RL Zoo run folder of {env_id} (<run>/{env_id}/args.yml)")
+    check_run_folder(params_dir)
+    try:
+        data = read_maddpg_data(model_path, ("policy_class", "n_agents", "num_timesteps", "observation_space", "action_space"))
+    except (ValueError, FileNotFoundError) as error:
+        raise UsageError(str(error)) from error
+    algorithm = saved_algorithm(data["policy_class"]).__name__
+    if algorithm.lower() != algo:
+        raise UsageError(
+            f"{os.fspath(model_path)} is a {algorithm} model, not a {algo.upper()} one: pass --algo {algorithm.lower()}"
+        )
+    return params_dir, data, algorithm
+
+
+def _copy_run_files(model_path: str | os.PathLike, params_dir: Path, out: Path, name: str) -> None:
+    """
+    Prepare the folder ``out`` and copy the run's files into it: the model as ``<name>.zip``, its ``config.yml`` and
+    ``args.yml``, the VecNormalize statistics where the run has them, and the archive of its metrics.
+    """
+    _prepare_folder(out, f"{name}.zip")
+    shutil.copyfile(model_path, out / f"{name}.zip")
+    for file in ("config.yml", "args.yml"):
+        shutil.copyfile(params_dir / file, out / file)
+    if (params_dir / "vecnormalize.pkl").is_file():
+        shutil.copyfile(params_dir / "vecnormalize.pkl", out / VEC_NORMALIZE)
+    _metrics_archive(params_dir.parent, out / "train_eval_metrics.zip")
 
 
 def _env_kwargs_flag(env_kwargs: dict[str, Any] | None) -> str:
@@ -357,10 +376,8 @@ def model_card(
     :param replay: whether the repository has ``replay.gif``
     :return: the card
     """
-    organization, name = repo.split("/", 1)
     kwargs = evaluation["env_kwargs"]
     entry = yaml.safe_dump({env_id: hyperparams}, sort_keys=False).rstrip()
-    flags = f"--algo {algo} --env {env_id}"
     lines = [
         "---",
         card_metadata(algorithm, env_id, evaluation["summary"][0], evaluation["metrics"].values).rstrip(),
@@ -389,7 +406,20 @@ def model_card(
     ]
     if replay:
         lines += [f"![An evaluation episode]({REPLAY})", ""]
-    lines += [
+    return "\n".join(lines + _card_commands(algo, env_id, repo, timesteps, entry, evaluate_flags))
+
+
+def _card_commands(algo: str, env_id: str, repo: str, timesteps: int, entry: str, evaluate_flags: str) -> list[str]:
+    """
+    The card's ``Usage`` and ``Training`` sections: the commands that load, watch and evaluate the model, and the
+    run's YAML entry with the commands that train and push such a model (parameters as in ``model_card``).
+
+    :param entry: the run's hyperparameters as an entry for ``-conf``
+    :return: the sections' lines
+    """
+    organization, name = repo.split("/", 1)
+    flags = f"--algo {algo} --env {env_id}"
+    return [
         "## Usage",
         "",
         "```bash",
@@ -413,7 +443,6 @@ def model_card(
         "```",
         "",
     ]
-    return "\n".join(lines)
 
 
 def create_repo(repo: str, private: bool = False) -> str:

@@ -48,29 +48,18 @@ def run_evaluate(args: argparse.Namespace) -> None:
 
     :param args: parsed arguments
     """
-    from sb3_maddpg.evaluation.baselines import make_baselines
     from sb3_maddpg.evaluation.progress import wants_progress_bar
     from sb3_maddpg.evaluation.report import (
         ModelEnvMismatchError,
         OpponentEnvMismatchError,
-        check_state_steps,
         evaluate_and_report,
         find_run_config,
     )
-    from sb3_maddpg.evaluation.task_tools import episode_limit, task_tools
-    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS, make_multiagent_env
+    from sb3_maddpg.zoo.registry import MULTIAGENT_ENVS
 
     import_gym_packages(args.gym_packages)
-    model_path = args.model
-    run_env_id, run_env_kwargs = None, {}
-    if model_path is not None:
-        if not os.path.isfile(model_path) and os.path.isfile(model_path + ".zip"):
-            model_path += ".zip"
-        if not os.path.isfile(model_path):
-            raise UsageError(f"--model: model file {args.model} not found")
-        if not zipfile.is_zipfile(model_path):
-            raise UsageError(f"--model: {model_path} is not a saved model (.zip)")
-        run_env_id, run_env_kwargs = find_run_config(model_path)
+    model_path = _evaluation_model_file(args.model)
+    run_env_id, run_env_kwargs = (None, {}) if model_path is None else find_run_config(model_path)
     if args.episodes < 1:
         raise UsageError(f"--episodes must be >= 1, got {args.episodes}")
     env_id = args.env or run_env_id or DEFAULT_EVALUATION_ENV_ID
@@ -78,8 +67,64 @@ def run_evaluate(args: argparse.Namespace) -> None:
         raise UsageError(f"unknown env {env_id!r}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
     env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs") or {}
     check_env_kwargs(env_id, {**run_env_kwargs, **env_kwargs}, flag="--env-kwargs")
-    # What the checks below need from the env, before any model is loaded or episode run
-    probe = make_multiagent_env(env_id, **{**run_env_kwargs, **env_kwargs})
+    _check_evaluate_flags(args, model_path, env_id, {**run_env_kwargs, **env_kwargs})
+    check_writable(args.out, "--out")
+    try:
+        evaluate_and_report(
+            args.out,
+            n_episodes=args.episodes,
+            model_path=model_path,
+            env_id=env_id,
+            env_kwargs=env_kwargs,
+            seed=args.seed,
+            device=args.device,
+            state_steps=args.state_steps,
+            gif=not args.no_gif,
+            verbose=args.verbose,
+            baselines=args.baselines,
+            team=args.team,
+            opponent=args.opponent,
+            progress=wants_progress_bar(args.quiet),
+        )
+    except OpponentEnvMismatchError as error:
+        raise UsageError(f"--opponent: {error}") from error
+    except ModelEnvMismatchError as error:
+        raise UsageError(f"--model: {error}") from error
+
+
+def _evaluation_model_file(model: str | None) -> str | None:
+    """
+    :param model: ``evaluate``'s ``--model`` (the ``.zip`` may be left out), or None
+    :return: the saved model's file, or None
+    """
+    if model is None:
+        return None
+    model_path = model
+    if not os.path.isfile(model_path) and os.path.isfile(model_path + ".zip"):
+        model_path += ".zip"
+    if not os.path.isfile(model_path):
+        raise UsageError(f"--model: model file {model} not found")
+    if not zipfile.is_zipfile(model_path):
+        raise UsageError(f"--model: {model_path} is not a saved model (.zip)")
+    return model_path
+
+
+def _check_evaluate_flags(args: argparse.Namespace, model_path: str | None, env_id: str, env_kwargs: dict[str, Any]) -> None:
+    """
+    ``evaluate``'s flags that depend on the env (``--state-steps``, ``--baselines``, ``--team``, ``--opponent``),
+    checked against one instance of it before any model is loaded or episode run.
+
+    :param args: parsed arguments
+    :param model_path: the model's file, or None
+    :param env_id: the env evaluated
+    :param env_kwargs: its arguments (the run's, then ``--env-kwargs``)
+    """
+    from sb3_maddpg.evaluation.baselines import make_baselines
+    from sb3_maddpg.evaluation.report import check_state_steps
+    from sb3_maddpg.evaluation.task_tools import episode_limit, task_tools
+    from sb3_maddpg.zoo.registry import make_multiagent_env
+
+    probe = make_multiagent_env(env_id, **env_kwargs)
     tools, agents, max_cycles = task_tools(probe), list(probe.possible_agents), episode_limit(probe)
     probe.close()
     try:
@@ -105,28 +150,6 @@ def run_evaluate(args: argparse.Namespace) -> None:
             check_team(args.team, agents)
         except ValueError as error:
             raise UsageError(f"--team: {error} ({env_id})") from error
-    check_writable(args.out, "--out")
-    try:
-        evaluate_and_report(
-            args.out,
-            n_episodes=args.episodes,
-            model_path=model_path,
-            env_id=env_id,
-            env_kwargs=env_kwargs,
-            seed=args.seed,
-            device=args.device,
-            state_steps=args.state_steps,
-            gif=not args.no_gif,
-            verbose=args.verbose,
-            baselines=args.baselines,
-            team=args.team,
-            opponent=args.opponent,
-            progress=wants_progress_bar(args.quiet),
-        )
-    except OpponentEnvMismatchError as error:
-        raise UsageError(f"--opponent: {error}") from error
-    except ModelEnvMismatchError as error:
-        raise UsageError(f"--model: {error}") from error
 
 
 def run_plot(args: argparse.Namespace) -> None:
@@ -305,28 +328,12 @@ def run_load_from_hub(args: argparse.Namespace) -> None:
         print(f"Evaluate it: python -m {PROG} evaluate --model {model_path}")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def add_evaluate_command(commands: Any) -> None:
     """
-    :return: the command's parser (``train``, ``optimize`` and ``enjoy`` hand their arguments to RL Zoo's parsers)
+    Add the ``evaluate`` command and its options.
+
+    :param commands: the subparsers of :func:`build_parser`
     """
-    parser = argparse.ArgumentParser(
-        prog=PROG,
-        description="MADDPG and MATD3 with quantile-CVaR critics for Stable-Baselines3, run through RL Zoo.",
-        epilog=f"`{PROG} COMMAND -h` shows a command's options (train, optimize, enjoy and record-video: RL Zoo's). "
-        f"For train, optimize, enjoy and record-video, {DEFAULTS_HELP}.",
-    )
-    from sb3_maddpg import __version__
-
-    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
-    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
-    commands.add_parser("train", help="train with RL Zoo (rl_zoo3 train flags)", add_help=False)
-    commands.add_parser("optimize", help="tune hyperparameters with RL Zoo's Optuna search (default storage: SQLite)")
-    commands.add_parser("enjoy", help="watch a trained agent with RL Zoo's enjoy (rl_zoo3 enjoy flags)")
-    commands.add_parser(
-        "record-video",
-        help="write a video of a trained agent with RL Zoo's record_video (-n timesteps, -o folder, default <run>/videos)",
-    )
-
     evaluate = commands.add_parser(
         "evaluate",
         help="evaluate a model against baselines (random actions; on the UAV envs the greedy static placement and "
@@ -379,6 +386,13 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--verbose", type=int, default=1, help="0: quiet, 1: table, 2: every episode")
     evaluate.add_argument("--quiet", action="store_true", help=QUIET_HELP)
 
+
+def add_plot_command(commands: Any) -> None:
+    """
+    Add the ``plot`` command and its options.
+
+    :param commands: the subparsers of :func:`build_parser`
+    """
     plot = commands.add_parser(
         "plot",
         help="draw the training figures from a run's logs",
@@ -399,6 +413,13 @@ def build_parser() -> argparse.ArgumentParser:
         "folder's; a bare monitor.csv or TensorBoard folder: each metric of the logs against episode)",
     )
 
+
+def add_select_checkpoint_command(commands: Any) -> None:
+    """
+    Add the ``select-checkpoint`` command and its options.
+
+    :param commands: the subparsers of :func:`build_parser`
+    """
     select = commands.add_parser(
         "select-checkpoint",
         help="the best of a run's checkpoints, chosen on validation episodes, beside the final model on test episodes",
@@ -415,6 +436,33 @@ def build_parser() -> argparse.ArgumentParser:
     select.add_argument("--device", default="auto", help="device of the models (default: auto)")
     select.add_argument("--out", default=os.path.join("results", "checkpoints"), help="output folder")
     select.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """
+    :return: the command's parser (``train``, ``optimize`` and ``enjoy`` hand their arguments to RL Zoo's parsers)
+    """
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description="MADDPG and MATD3 with quantile-CVaR critics for Stable-Baselines3, run through RL Zoo.",
+        epilog=f"`{PROG} COMMAND -h` shows a command's options (train, optimize, enjoy and record-video: RL Zoo's). "
+        f"For train, optimize, enjoy and record-video, {DEFAULTS_HELP}.",
+    )
+    from sb3_maddpg import __version__
+
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+    commands.add_parser("train", help="train with RL Zoo (rl_zoo3 train flags)", add_help=False)
+    commands.add_parser("optimize", help="tune hyperparameters with RL Zoo's Optuna search (default storage: SQLite)")
+    commands.add_parser("enjoy", help="watch a trained agent with RL Zoo's enjoy (rl_zoo3 enjoy flags)")
+    commands.add_parser(
+        "record-video",
+        help="write a video of a trained agent with RL Zoo's record_video (-n timesteps, -o folder, default <run>/videos)",
+    )
+
+    add_evaluate_command(commands)
+    add_plot_command(commands)
+    add_select_checkpoint_command(commands)
     add_hub_commands(commands)
     return parser
 

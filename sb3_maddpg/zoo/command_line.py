@@ -270,7 +270,6 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
     :return: the arguments RL Zoo's parser gets
     """
     from sb3_maddpg.zoo.registry import is_multiagent_env
-    from sb3_maddpg.zoo.storage import check_storage, is_database_url
 
     argv = list(argv)
     if _has_flag(argv, "-h", "--help"):
@@ -293,17 +292,7 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         check_env_kwargs(args.env, env_kwargs, flag="--env-kwargs")
 
     if command in PLAY_COMMANDS:
-        if args.n_timesteps is not None and args.n_timesteps <= 0:
-            raise UsageError(f"-n/--n-timesteps must be a positive number of timesteps to play, got {args.n_timesteps}")
-        if getattr(args, "output_folder", None):
-            check_writable(args.output_folder, "-o/--output-folder")
-        if not _has_flag(argv, "-f", "--folder"):
-            # RL Zoo's default folder downloads models from the Hugging Face hub; this project's runs are in logs/.
-            argv += ["-f", args.folder]
-        model_path = find_trained_model(args)
-        if args.algo in MULTIAGENT_ALGOS and is_multiagent_env(args.env):
-            _check_model_fits_env(model_path, args.env, env_kwargs)
-        return argv
+        return _prepare_play_argv(args, argv, env_kwargs)
 
     if args.n_timesteps is not None and args.n_timesteps <= 0:
         raise UsageError(
@@ -331,25 +320,65 @@ def prepare_zoo_argv(command: str, argv: list[str]) -> list[str]:
         _check_trained_agent(args.trained_agent, args.algo)
 
     if command == "optimize":
-        argv.append("-optimize")
-        if not _has_flag(argv, "--no-optim-plots"):
-            # Optuna's plots need plotly and open a browser: off unless asked for.
-            argv.append("--no-optim-plots")
-        storage = args.storage
-        if storage is None:
-            folder = Path(args.log_folder) / args.algo
-            folder.mkdir(parents=True, exist_ok=True)
-            storage = f"sqlite:///{folder / 'optuna.db'}"
-            argv += ["--storage", storage]
-        elif is_database_url(storage):
-            check_storage(storage)
-        elif not storage.endswith(".log"):
-            # A plain file name means a local SQLite database.
-            Path(storage).parent.mkdir(parents=True, exist_ok=True)
-            argv = [f"--storage=sqlite:///{storage}" if arg == f"--storage={storage}" else arg for arg in argv]
-            argv = [f"sqlite:///{storage}" if i > 0 and argv[i - 1] == "--storage" else arg for i, arg in enumerate(argv)]
-        if args.study_name is None:
-            argv += ["--study-name", f"{args.algo}_{args.env}"]
+        argv = _prepare_optimize_argv(args, argv)
+    return argv
+
+
+def _prepare_play_argv(args: argparse.Namespace, argv: list[str], env_kwargs: dict[str, Any] | None) -> list[str]:
+    """
+    ``prepare_zoo_argv`` for ``enjoy`` and ``record-video``: the play flags checked, the run's folder added, and the
+    trained model found and checked against the env.
+
+    :param args: the arguments parsed by ``_zoo_preparser``
+    :param argv: the arguments so far
+    :param env_kwargs: ``--env-kwargs`` parsed
+    :return: the arguments RL Zoo's parser gets
+    """
+    from sb3_maddpg.zoo.registry import is_multiagent_env
+
+    if args.n_timesteps is not None and args.n_timesteps <= 0:
+        raise UsageError(f"-n/--n-timesteps must be a positive number of timesteps to play, got {args.n_timesteps}")
+    if getattr(args, "output_folder", None):
+        check_writable(args.output_folder, "-o/--output-folder")
+    if not _has_flag(argv, "-f", "--folder"):
+        # RL Zoo's default folder downloads models from the Hugging Face hub; this project's runs are in logs/.
+        argv += ["-f", args.folder]
+    model_path = find_trained_model(args)
+    if args.algo in MULTIAGENT_ALGOS and is_multiagent_env(args.env):
+        _check_model_fits_env(model_path, args.env, env_kwargs)
+    return argv
+
+
+def _prepare_optimize_argv(args: argparse.Namespace, argv: list[str]) -> list[str]:
+    """
+    ``prepare_zoo_argv``'s additions for ``optimize``: RL Zoo's ``-optimize``, no Optuna plots unless asked for, a
+    local SQLite storage by default (a plain file name: a SQLite database; a database URL checked), and a study name.
+
+    :param args: the arguments parsed by ``_zoo_preparser``
+    :param argv: the arguments so far
+    :return: the arguments RL Zoo's parser gets
+    """
+    from sb3_maddpg.zoo.storage import check_storage, is_database_url
+
+    argv.append("-optimize")
+    if not _has_flag(argv, "--no-optim-plots"):
+        # Optuna's plots need plotly and open a browser: off unless asked for.
+        argv.append("--no-optim-plots")
+    storage = args.storage
+    if storage is None:
+        folder = Path(args.log_folder) / args.algo
+        folder.mkdir(parents=True, exist_ok=True)
+        storage = f"sqlite:///{folder / 'optuna.db'}"
+        argv += ["--storage", storage]
+    elif is_database_url(storage):
+        check_storage(storage)
+    elif not storage.endswith(".log"):
+        # A plain file name means a local SQLite database.
+        Path(storage).parent.mkdir(parents=True, exist_ok=True)
+        argv = [f"--storage=sqlite:///{storage}" if arg == f"--storage={storage}" else arg for arg in argv]
+        argv = [f"sqlite:///{storage}" if i > 0 and argv[i - 1] == "--storage" else arg for i, arg in enumerate(argv)]
+    if args.study_name is None:
+        argv += ["--study-name", f"{args.algo}_{args.env}"]
     return argv
 
 

@@ -78,6 +78,32 @@ def wrap_like_rl_zoo(
     return env
 
 
+def _set_human_render_mode(env_id: str, env_kwargs: dict[str, Any], should_render: bool) -> bool:
+    """
+    Only envs that draw on screen get ``render_mode="human"`` (set in ``env_kwargs`` unless it names a render mode);
+    for the others ``enjoy``'s rendering is refused with a warning (the UAV env renders to arrays: see ``evaluate``
+    for GIFs).
+
+    :param env_id: the env id
+    :param env_kwargs: its constructor arguments (changed in place)
+    :param should_render: whether ``enjoy`` will render
+    :return: whether the env will be shown on screen
+    """
+    render_modes = check_env_kwargs(env_id, {key: value for key, value in env_kwargs.items() if key != "render_mode"}).get(
+        "render_modes", []
+    )
+    can_render_human = should_render and "human" in render_modes
+    if can_render_human and "render_mode" not in env_kwargs:
+        env_kwargs["render_mode"] = "human"
+    elif should_render and "render_mode" not in env_kwargs:
+        warnings.warn(
+            f"{env_id} cannot be shown on screen (its render modes: {', '.join(render_modes) or 'none'}); "
+            f"write a video instead: sb3_maddpg record-video --env {env_id} (or pass --no-render)",
+            stacklevel=3,
+        )
+    return can_render_human
+
+
 def create_multiagent_test_env(
     env_id: str,
     n_envs: int = 1,
@@ -126,19 +152,7 @@ def create_multiagent_test_env(
         )
     hyperparams = dict(hyperparams or {})
     env_kwargs = deepcopy(env_kwargs or {})
-    render_modes = check_env_kwargs(env_id, {key: value for key, value in env_kwargs.items() if key != "render_mode"}).get(
-        "render_modes", []
-    )
-    # Only envs that draw on screen get render_mode="human"; the UAV env renders to arrays (see `evaluate` for GIFs).
-    can_render_human = should_render and "human" in render_modes
-    if can_render_human and "render_mode" not in env_kwargs:
-        env_kwargs["render_mode"] = "human"
-    elif should_render and "render_mode" not in env_kwargs:
-        warnings.warn(
-            f"{env_id} cannot be shown on screen (its render modes: {', '.join(render_modes) or 'none'}); "
-            f"write a video instead: sb3_maddpg record-video --env {env_id} (or pass --no-render)",
-            stacklevel=2,
-        )
+    can_render_human = _set_human_render_mode(env_id, env_kwargs, should_render)
 
     env: VecEnv = make_zoo_multiagent_vec_env(env_id, n_envs, seed, env_kwargs, vec_env_cls)
     if log_dir is not None:

@@ -1,4 +1,9 @@
-"""Checks of the env's parameters: every message names the parameter, the value received and what is accepted."""
+"""
+Checks of the env's parameters: every message names the parameter, the value received and what is accepted.
+
+``check_int`` and ``check_number`` have the interface of sb3_maddpg's (``sb3_maddpg.common.validation``, which this
+package does not import): closed bounds ``low`` and ``high`` unless ``low_open``/``high_open``, None for unbounded.
+"""
 
 from __future__ import annotations
 

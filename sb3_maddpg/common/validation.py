@@ -1,6 +1,11 @@
 """
 Argument checks shared by ``MADDPG``, its policies and the VecEnv helper: each raises where the input enters, with one
 line naming the argument, the value given and what is accepted.
+
+Each check takes the argument's name and value and returns the value (as an int or float for the numbers), so that an
+argument is checked where it is stored (``self.policy_delay = check_int("policy_delay", policy_delay, low=1)``) or
+handed to SB3, which stores it. The bounds are closed unless ``low_open``/``high_open`` say otherwise, and None means
+unbounded; the task package ``sb3_maddpg_envs`` has the same ``check_int`` and ``check_number`` in a module of its own.
 """
 
 import math

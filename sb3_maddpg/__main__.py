@@ -66,8 +66,9 @@ def run_evaluate(args: argparse.Namespace) -> None:
     if env_id not in MULTIAGENT_ENVS:
         raise UsageError(f"unknown env {env_id!r}; multi-agent envs: {', '.join(sorted(MULTIAGENT_ENVS))}")
     env_kwargs = parse_key_values(args.env_kwargs, "--env-kwargs") or {}
-    check_env_kwargs(env_id, {**run_env_kwargs, **env_kwargs}, flag="--env-kwargs")
-    _check_evaluate_flags(args, model_path, env_id, {**run_env_kwargs, **env_kwargs})
+    evaluated_env_kwargs = {**run_env_kwargs, **env_kwargs}  # the run's, then --env-kwargs over them
+    check_env_kwargs(env_id, evaluated_env_kwargs, flag="--env-kwargs")
+    _check_evaluate_flags(args, model_path, env_id, evaluated_env_kwargs)
     check_writable(args.out, "--out")
     try:
         evaluate_and_report(

@@ -115,6 +115,7 @@ BINARY_MONITOR = DATA / "binary_monitor.csv"
         (["plot", "--log", "model.zip"], "--log: model.zip is not a monitor.csv (a text CSV file written during training)"),
         (["plot", "--log", str(BINARY_MONITOR)], "binary_monitor.csv is not a monitor.csv"),
         (["plot", "--log", "run"], "run/monitor.csv is not a monitor.csv"),
+        (["plot", "--log", "run", "--env", "no_such_env_v0"], "--env: unknown env 'no_such_env_v0'; registered multi-agent"),
         (["record-video", "--env", ENV, "-o", "model.zip"], "-o/--output-folder: model.zip exists and is not a folder"),
         (["record-video", "--env", ENV, "-n", "0"], "-n/--n-timesteps must be a positive number of timesteps to play, got 0"),
         (["enjoy", "--env", ENV, "-n", "-3"], "-n/--n-timesteps must be a positive number of timesteps to play, got -3"),

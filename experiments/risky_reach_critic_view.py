@@ -1,0 +1,148 @@
+"""
+Does the quantile critic see risky_reach_v0's zone, and where does the CVaR actor's gradient pull? For saved MADDPG
+models with a quantile critic, play deterministic episodes and, at every agent-step, read critic i's quantiles of
+agent i's return for the team's actual joint action, beside the truth it should learn.
+
+The truth is exact here: the task's losses do not move the agents and no observation shows them, so a deterministic
+team flies the same path whatever the draws, and the loss part of agent i's return from step t is
+``-zone_loss * sum_k gamma^k B_{t+k}`` with ``B`` Bernoulli(``zone_prob``) at the steps that end inside the zone. Its
+tail depth (mean minus CVaR_alpha) is what the critic's tail depth should be; the rest of the return is deterministic
+and adds nothing to the depth.
+
+For the agent-steps before the zone (left of it, inside its band of y), it also reads where the actor's objective
+pulls: the gradient of critic i's mean and of its CVaR_alpha with respect to agent i's own action, and the share of
+those steps where its y component points around the zone (away from the zone's middle line, towards the nearer of
+its top and bottom edges).
+
+    python experiments/risky_reach_critic_view.py runs/risky/logs/a025_s0/maddpg/risky_reach_v0_1/risky_reach_v0.zip
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+import torch as th
+
+from sb3_maddpg import MADDPG
+from sb3_maddpg.common.distributional import cvar
+from sb3_maddpg_envs.risky_reach_v0 import ZONE, in_zone, parallel_env
+
+EVAL_SEED = 10_000  # the first evaluation episode of experiments/risky_reach_sweep.sh
+N_DRAWS = 20_000  # Monte Carlo draws of the losses for the truth's tail
+
+
+def true_tail_depth(inside_ahead: np.ndarray, gamma: float, alpha: float, zone_prob: float, zone_loss: float) -> float:
+    """
+    Mean minus CVaR_alpha of the loss part of a return whose steps end inside the zone where ``inside_ahead`` is true.
+
+    :param inside_ahead: (H,) booleans, the step of the read value first
+    :param gamma: the discount
+    :param alpha: the CVaR level
+    :param zone_prob: the chance of a loss at a step inside
+    :param zone_loss: its cost
+    :return: the tail depth (>= 0)
+    """
+    weights = gamma ** np.arange(len(inside_ahead)) * inside_ahead
+    if not weights.any():
+        return 0.0
+    rng = np.random.default_rng(0)
+    losses = -zone_loss * (rng.random((N_DRAWS, len(weights))) < zone_prob) @ weights
+    worst = np.sort(losses)[: max(1, int(round(alpha * N_DRAWS)))]
+    return float(losses.mean() - worst.mean())
+
+
+def critic_view(model: MADDPG, n_episodes: int, alpha: float, seed: int = EVAL_SEED) -> dict[str, np.ndarray]:
+    """
+    Critic i's tail depth and the truth at every agent-step; the own-action gradients' pull before the zone.
+
+    :param model: a trained team on ``risky_reach_v0`` whose policy has ``n_quantiles > 1``
+    :param n_episodes: deterministic episodes, reset seeds ``seed``, ``seed + 1``, ...
+    :param alpha: the CVaR level read
+    :param seed: the first reset seed
+    :return: per agent-step ``phase`` (0 before the zone, 1 inside, 2 elsewhere), ``depth`` and ``true_depth``;
+        per agent-step before the zone ``around_mean`` and ``around_cvar`` (whether the gradient's y component points
+        around the zone)
+    """
+    policy = model.policy
+    if policy.n_quantiles < 2:
+        raise ValueError(f"{type(model).__name__} has {policy.n_quantiles} quantile: there is no tail to read")
+    gamma = float(model.gamma)
+    phases, depths, true_depths, around_mean, around_cvar = [], [], [], [], []
+    x_min, _, y_min, y_max = ZONE
+    for episode in range(n_episodes):
+        env = parallel_env()
+        observations, _ = env.reset(seed=seed + episode)
+        n_agents = len(env.possible_agents)
+        episode_depths, episode_phases, inside_after = [], [], []
+        while env.agents:
+            stacked = np.stack([observations[agent] for agent in env.possible_agents])
+            actions, _ = model.predict(stacked, deterministic=True)
+            with th.no_grad():
+                obs = policy.obs_to_tensor(stacked)[0].view(1, n_agents, *stacked.shape[1:])
+                joint = th.as_tensor(policy.scale_action(actions), dtype=th.float32).view(1, n_agents, -1)
+                features = policy.critic.encode(obs)
+                quantiles = policy.critic.quantiles_from_features(features, joint)[0]  # (N, n_q)
+            episode_depths.append((quantiles.mean(dim=-1) - cvar(quantiles, alpha)).numpy())
+            before = (env.positions[:, 0] <= x_min) & (env.positions[:, 1] > y_min) & (env.positions[:, 1] < y_max)
+            if before.any():
+                gradients = []
+                for objective in (lambda q: q.mean(dim=-1), lambda q: cvar(q, alpha)):
+                    own = joint.clone().requires_grad_(True)
+                    value = objective(policy.critic.quantiles_with_own_actions(features, joint, own)).sum()
+                    (gradient,) = th.autograd.grad(value, own)
+                    gradients.append(gradient[0].numpy())
+                around = np.where(env.positions[:, 1] >= 0.0, 1.0, -1.0)  # the nearer edge's side
+                for i in np.flatnonzero(before):
+                    around_mean.append(bool(gradients[0][i, 1] * around[i] > 0))
+                    around_cvar.append(bool(gradients[1][i, 1] * around[i] > 0))
+            observations, *_ = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
+            inside = in_zone(env.positions)
+            inside_after.append(inside)
+            episode_phases.append(np.where(before, 0, np.where(inside, 1, 2)))
+        inside_after = np.array(inside_after)  # (T, N)
+        for t, (depth, phase) in enumerate(zip(episode_depths, episode_phases, strict=True)):
+            for i in range(n_agents):
+                phases.append(int(phase[i]))
+                depths.append(float(depth[i]))
+                true_depths.append(true_tail_depth(inside_after[t:, i], gamma, alpha, env.zone_prob, env.zone_loss))
+    return {
+        "phase": np.array(phases),
+        "depth": np.array(depths),
+        "true_depth": np.array(true_depths),
+        "around_mean": np.array(around_mean),
+        "around_cvar": np.array(around_cvar),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("models", nargs="+", help="saved MADDPG models (.zip) on risky_reach_v0 with quantile critics")
+    parser.add_argument("--episodes", type=int, default=10)
+    parser.add_argument("--alpha", type=float, default=0.25, help="the CVaR level read")
+    parser.add_argument("--seed", type=int, default=EVAL_SEED, help="seed of the first episode")
+    args = parser.parse_args(argv)
+    th.set_num_threads(1)
+    a = args.alpha
+    print(
+        f"| model | agent-steps before / inside the zone | tail depth (mean - CVaR_{a}) before: critic / truth | "
+        f"inside: critic / truth | before the zone: the mean's / CVaR_{a}'s gradient points around |"
+    )
+    print("|---|---|---|---|---|")
+    for path in args.models:
+        view = critic_view(MADDPG.load(path, device="cpu"), args.episodes, args.alpha, args.seed)
+        before, inside = view["phase"] == 0, view["phase"] == 1
+        cells = [
+            f"{view[key][mask].mean():.3f}" if mask.any() else "-"
+            for mask in (before, inside)
+            for key in ("depth", "true_depth")
+        ]
+        pulls = " / ".join(f"{view[key].mean():.2f}" if view[key].size else "-" for key in ("around_mean", "around_cvar"))
+        counts = f"{int(before.sum())} / {int(inside.sum())}"
+        print(f"| {path} | {counts} | {cells[0]} / {cells[1]} | {cells[2]} / {cells[3]} | {pulls} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

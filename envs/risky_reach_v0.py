@@ -33,6 +33,8 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils import wrappers
 from pettingzoo.utils.conversions import parallel_to_aec
 
+from .validation import check_int, check_number
+
 __all__ = ["RiskyReachEnv", "env", "hand_made_policy", "parallel_env", "raw_env"]
 
 START_X, LANDMARK_X = -0.8, 0.8
@@ -73,22 +75,20 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
         render_mode: str | None = None,
     ) -> None:
         EzPickle.__init__(self, n_agents, zone_prob, zone_loss, max_cycles, jitter, render_mode)
-        if isinstance(n_agents, bool) or not isinstance(n_agents, int | np.integer) or not 1 <= n_agents <= 5:
-            raise ValueError(f"n_agents must be an integer from 1 to 5, got {n_agents!r}")
-        for name, value, high in (("zone_prob", zone_prob, 1.0), ("zone_loss", zone_loss, np.inf), ("jitter", jitter, 0.2)):
-            if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 <= value <= high:
-                raise ValueError(f"{name} must be a number in [0, {high}], got {value!r}")
-        if isinstance(max_cycles, bool) or not isinstance(max_cycles, int | np.integer) or not 1 <= max_cycles <= 10_000:
-            raise ValueError(f"max_cycles must be an integer from 1 to 10000, got {max_cycles!r}")
+        n_agents = check_int("n_agents", n_agents, 1, 5)
+        zone_prob = check_number("zone_prob", zone_prob, 0.0, 1.0)
+        zone_loss = check_number("zone_loss", zone_loss, 0.0)
+        jitter = check_number("jitter", jitter, 0.0, 0.2)
+        max_cycles = check_int("max_cycles", max_cycles, 1, 10_000)
         if render_mode is not None:
             raise ValueError(f"risky_reach_v0 does not render: render_mode must be None, got {render_mode!r}")
         self.render_mode = render_mode
-        self.zone_prob, self.zone_loss, self.jitter = float(zone_prob), float(zone_loss), float(jitter)
-        self.max_cycles = int(max_cycles)
-        self.possible_agents = [f"agent_{i}" for i in range(int(n_agents))]
+        self.zone_prob, self.zone_loss, self.jitter = zone_prob, zone_loss, jitter
+        self.max_cycles = max_cycles
+        self.possible_agents = [f"agent_{i}" for i in range(n_agents)]
         self.agents: list[str] = []
-        self.lanes = np.linspace(-0.3, 0.3, int(n_agents)) if n_agents > 1 else np.zeros(1)
-        n_obs = 9 + 2 * (int(n_agents) - 1)
+        self.lanes = np.linspace(-0.3, 0.3, n_agents) if n_agents > 1 else np.zeros(1)
+        n_obs = 9 + 2 * (n_agents - 1)
         self._observation_space = spaces.Box(-4.0, 4.0, (n_obs,), np.float32)
         self._action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self._rng = np.random.default_rng()

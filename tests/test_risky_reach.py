@@ -68,10 +68,10 @@ def test_the_mean_goes_through_and_the_tail_goes_around():
 
 def test_bad_arguments_are_refused():
     for kwargs, message in [
-        (dict(n_agents=0), "n_agents must be an integer from 1 to 5"),
-        (dict(zone_prob=1.5), r"zone_prob must be a number in \[0, 1.0\]"),
-        (dict(zone_loss=-1.0), "zone_loss must be a number"),
-        (dict(max_cycles=0), "max_cycles must be an integer from 1 to 10000"),
+        (dict(n_agents=0), r"n_agents must be an integer in \[1, 5\]"),
+        (dict(zone_prob=1.5), "zone_prob must be a finite number >= 0 and <= 1"),
+        (dict(zone_loss=-1.0), "zone_loss must be a finite number >= 0"),
+        (dict(max_cycles=0), r"max_cycles must be an integer in \[1, 10000\]"),
         (dict(render_mode="human"), "does not render"),
     ]:
         with pytest.raises(ValueError, match=message):

@@ -15,10 +15,10 @@ from typing import Any
 import numpy as np
 from pettingzoo import ParallelEnv
 
+from ..validation import check_int, check_number, check_zone
 from .dynamics import move_within_walls, step_energy
 from .hazards import in_zone
 from .rewards import coverage_score, covering_pairs, energy_weighted_gain, jain_fairness
-from .validation import check_int, check_number, check_zone
 
 __all__ = [
     "GREEDY_STEP_HEADINGS",

@@ -17,11 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .dynamics import ACTION_MODES, WALL_MODES
-from .observations import POSITION_MARKS
-from .pois import resolve_pois
-from .rewards import REWARD_MODES
-from .validation import (
+from ..validation import (
     MAX_MAP_SIZE,
     MAX_OBS_SIZE,
     MAX_STEPS,
@@ -34,6 +30,10 @@ from .validation import (
     check_zone,
     warn_without_effect,
 )
+from .dynamics import ACTION_MODES, WALL_MODES
+from .observations import POSITION_MARKS
+from .pois import resolve_pois
+from .rewards import REWARD_MODES
 
 __all__ = ["UAVCoverageConfig", "config_from_old_state"]
 

@@ -9,7 +9,7 @@ import os
 
 import numpy as np
 
-from .validation import MAX_MAP_SIZE, check_int, check_points
+from ..validation import MAX_MAP_SIZE, check_int, check_points
 
 __all__ = ["MIN_POI_IMAGE_SIDE", "lattice_pois", "load_poi_image", "pois_from_image", "resolve_pois"]
 

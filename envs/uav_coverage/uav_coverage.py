@@ -17,9 +17,9 @@ from pettingzoo.utils import wrappers
 from pettingzoo.utils.conversions import parallel_to_aec
 from pettingzoo.utils.env import AECEnv
 
+from ..validation import MAX_STEPS, check_int
 from .core import UAVCoverageCore
 from .task_tools import TASK_TOOLS
-from .validation import MAX_STEPS, check_int
 
 __all__ = ["UAVCoverageEnv", "env", "parallel_env", "raw_env"]
 

@@ -1,5 +1,6 @@
 """
-Checks of the env's parameters: every message names the parameter, the value received and what is accepted.
+Checks of the task packages' parameters: every message names the parameter, the value received and what is accepted.
+The bounds named ``MAX_*`` are the UAV coverage task's.
 
 ``check_int`` and ``check_number`` have the interface of sb3_maddpg's (``sb3_maddpg.common.validation``, which this
 package does not import): closed bounds ``low`` and ``high`` unless ``low_open``/``high_open``, None for unbounded.

@@ -41,12 +41,12 @@ def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
     monkeypatch.setattr(registry, "_env_packages_loaded", False)
     yield tmp_path
     for env_id in IDS:
-        dict.pop(MULTIAGENT_ENVS, env_id, None)
+        MULTIAGENT_ENVS.specs.pop(env_id, None)
         gym.registry.pop(env_id, None)
 
 
 def test_an_installed_task_package_registers_its_ids_when_one_is_looked_up(site: Path) -> None:
-    assert "my_reach_v0" not in dict.keys(MULTIAGENT_ENVS)  # nothing read before the first lookup
+    assert "my_reach_v0" not in MULTIAGENT_ENVS.specs  # nothing read before the first lookup
     assert "my_reach_v0" in MULTIAGENT_ENVS
     assert MULTIAGENT_ENVS["my_reach_long_v0"].kwargs == {"max_cycles": 7}
     assert make_multiagent_env("my_reach_v0").max_cycles == 3

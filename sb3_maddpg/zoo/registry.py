@@ -14,7 +14,7 @@ imported with ``--gym-packages`` may also call :func:`register_multiagent_env` i
 import functools
 import importlib
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, MutableMapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -148,52 +148,47 @@ def load_env_packages() -> None:
             )
 
 
-class _EnvRegistry(dict[str, MultiAgentEnvSpec]):
+class _EnvRegistry(MutableMapping[str, MultiAgentEnvSpec]):
     """
-    The registered ids (:data:`MULTIAGENT_ENVS`): a dict that registers the installed task packages' ids
-    (:func:`load_env_packages`) before it is first read.
+    The registered ids (:data:`MULTIAGENT_ENVS`): a mapping that registers the installed task packages' ids
+    (:func:`load_env_packages`) before it is first read or changed. Every method of the mapping (``in``, ``get``,
+    ``keys``, ``pop``, ...) goes through the five below, so none can miss them.
     """
 
-    def __contains__(self, env_id: object) -> bool:
-        load_env_packages()
-        return super().__contains__(env_id)
+    def __init__(self) -> None:
+        self.specs: dict[str, MultiAgentEnvSpec] = {}  # the ids registered so far, without reading the task packages
 
     def __getitem__(self, env_id: str) -> MultiAgentEnvSpec:
         load_env_packages()
-        return super().__getitem__(env_id)
+        return self.specs[env_id]
+
+    def __setitem__(self, env_id: str, spec: MultiAgentEnvSpec) -> None:
+        load_env_packages()
+        self.specs[env_id] = spec
+
+    def __delitem__(self, env_id: str) -> None:
+        load_env_packages()
+        del self.specs[env_id]
 
     def __iter__(self) -> Iterator[str]:
         load_env_packages()
-        return super().__iter__()
+        return iter(self.specs)
 
     def __len__(self) -> int:
         load_env_packages()
-        return super().__len__()
+        return len(self.specs)
 
-    def get(self, env_id: str, default: Any = None) -> Any:
-        load_env_packages()
-        return super().get(env_id, default)
-
-    def keys(self) -> Any:
-        load_env_packages()
-        return super().keys()
-
-    def values(self) -> Any:
-        load_env_packages()
-        return super().values()
-
-    def items(self) -> Any:
-        load_env_packages()
-        return super().items()
+    def __repr__(self) -> str:
+        return f"MULTIAGENT_ENVS({sorted(self)})"
 
 
-MULTIAGENT_ENVS: dict[str, MultiAgentEnvSpec] = _EnvRegistry()
+MULTIAGENT_ENVS = _EnvRegistry()
 
 
 def _register(env_id: str, entry_point: str | Callable[..., ParallelEnv], kwargs: dict[str, Any] | None) -> MultiAgentEnvSpec:
     """:func:`register_multiagent_env` without reading the task packages first (the library's own ids, at import)."""
     spec = MultiAgentEnvSpec(env_id, entry_point, dict(kwargs or {}))
-    dict.__setitem__(MULTIAGENT_ENVS, env_id, spec)
+    MULTIAGENT_ENVS.specs[env_id] = spec
     if env_id not in gym.registry:
         gym.register(env_id, entry_point=_NotAGymEnv(env_id))
     return spec

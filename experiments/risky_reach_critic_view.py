@@ -127,20 +127,21 @@ def main(argv: list[str] | None = None) -> int:
     a = args.alpha
     print(
         f"| model | agent-steps before / inside the zone | tail depth (mean - CVaR_{a}) before: critic / truth | "
-        f"inside: critic / truth | before the zone: the mean's / CVaR_{a}'s gradient points around |"
+        f"inside: critic / truth | elsewhere: critic / truth | before the zone: the mean's / CVaR_{a}'s gradient "
+        "points around |"
     )
-    print("|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|")
     for path in args.models:
         view = critic_view(MADDPG.load(path, device="cpu"), args.episodes, args.alpha, args.seed)
-        before, inside = view["phase"] == 0, view["phase"] == 1
+        before, inside, elsewhere = (view["phase"] == phase for phase in (0, 1, 2))
         cells = [
             f"{view[key][mask].mean():.3f}" if mask.any() else "-"
-            for mask in (before, inside)
+            for mask in (before, inside, elsewhere)
             for key in ("depth", "true_depth")
         ]
         pulls = " / ".join(f"{view[key].mean():.2f}" if view[key].size else "-" for key in ("around_mean", "around_cvar"))
         counts = f"{int(before.sum())} / {int(inside.sum())}"
-        print(f"| {path} | {counts} | {cells[0]} / {cells[1]} | {cells[2]} / {cells[3]} | {pulls} |")
+        print(f"| {path} | {counts} | {cells[0]} / {cells[1]} | {cells[2]} / {cells[3]} | {cells[4]} / {cells[5]} | {pulls} |")
     return 0
 
 

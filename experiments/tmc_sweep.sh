@@ -5,7 +5,7 @@
 #   train:     MADDPG (zoo_configs/maddpg.yml's uav_coverage_tmc_v1 entry) for each N and seed, each run evaluated
 #              on the same episodes as the baselines (with random actions beside it);
 #   table:     the Markdown table of everything under $OUT (experiments/tmc_table.py).
-# One training run is about an hour on one core (the YAML entry's comment): the full training sweep is 6 N x 3 seeds.
+# One training run is 35-60 minutes on one core: the full training sweep is 6 N x 3 seeds.
 # Usage: OUT=experiments/results/2026-12-04-tmc CORE=1 bash experiments/tmc_sweep.sh [baselines|train|table|all]
 # A quick check of the pipeline: NS=3 SEEDS=0 TIMESTEPS=200 EPISODES=1 OUT=/tmp/tmc bash experiments/tmc_sweep.sh train
 # PARAMS overrides entries of the YAML entry as RL Zoo's -params (e.g. the attention critic:

@@ -21,11 +21,12 @@ of the one-step target distribution (the step's reward, with and without the los
 quantiles at the next state and the target actors' action) and that target's loss minimiser.
 
 Variants (``VARIANTS``): the YAML entry's mean-anchored critic and the plain QR loss, 25 or 100 quantiles, the zone's
-loss 1 or 5, and the Huber threshold kappa 0.01 instead of 1 (the library's loss written out here with that kappa,
+loss 1 or 5, and the Huber threshold kappa 0.1 or 0.01 instead of 1 (the library's loss written out here with that kappa,
 ``kappa_critic_loss``). The other settings are the zoo_configs/maddpg.yml entry's: lr 1e-3, batch 256, tau 0.01,
 gamma 0.95, net_arch [64, 64]. One update takes about 7 ms on one (shared) CPU core with 25 quantiles, 17 ms with 100.
 
     python experiments/quantile_tail_evaluation.py --variants anchored plain plain_kappa0.01 --checkpoints 5000 15000 30000
+    python experiments/quantile_tail_evaluation.py --tabular-only --variants anchored plain_q100 plain_kappa0.1  # seconds
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ VARIANTS: dict[str, tuple[bool, int, dict, float | None]] = {
     "plain_q100": (False, 100, {}, None),
     "anchored_loss5": (True, 25, {"zone_loss": 5.0}, None),
     "plain_loss5": (False, 25, {"zone_loss": 5.0}, None),
+    "plain_kappa0.1": (False, 25, {}, 0.1),
     "plain_kappa0.01": (False, 25, {}, 0.01),
     "anchored_sq_kappa0.01": (True, 25, {}, 0.01),
 }
@@ -498,6 +500,40 @@ def run(variant: str, seed: int, buffer_steps: int, checkpoints: Sequence[int], 
             log.flush()
 
 
+def tabular_only(variant: str, alphas: Sequence[float], n_episodes: int) -> dict:
+    """
+    The truth's and the loss's tabular fixed point's tail depths along the noise-free hand-made paths, without a critic
+    (no training): the phases as in ``read_critic``, the critic's depths NaN.
+    """
+    env_kwargs = VARIANTS[variant][2]
+    probe = parallel_env(**env_kwargs)
+    truths = Truths(YAML["gamma"], alphas, variant, probe.zone_prob, probe.zone_loss)
+    x_min, _, y_min, y_max = ZONE
+    phases, true_depths, fixed_depths = [], [], []
+    for episode in range(n_episodes):
+        env = parallel_env(**env_kwargs)
+        observations, _ = env.reset(seed=EVAL_SEED + episode)
+        episode_phases, inside_after = [], []
+        while env.agents:
+            obs = np.stack([observations[a] for a in env.possible_agents])
+            before = (env.positions[:, 0] <= x_min) & (env.positions[:, 1] > y_min) & (env.positions[:, 1] < y_max)
+            actions = hand_made_actions(obs)
+            observations, *_ = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
+            inside = in_zone(env.positions)
+            inside_after.append(inside)
+            episode_phases.append(np.where(before, 0, np.where(inside, 1, 2)))
+        inside_after = np.array(inside_after)
+        for t, phase in enumerate(episode_phases):
+            for i in range(len(phase)):
+                truth, fixed = truths(inside_after[t:, i])
+                phases.append(int(phase[i]))
+                true_depths.append(truth)
+                fixed_depths.append(fixed)
+    view = {"phase": np.array(phases), "true_depth": np.array(true_depths), "fixed_depth": np.array(fixed_depths)}
+    view["depth"] = np.full_like(view["true_depth"], np.nan)
+    return view
+
+
 def deterministic_zone_steps(n_episodes: int, env_kwargs: dict) -> list[int]:
     """The team's zone steps per episode of the noise-free hand-made policy (reset seeds EVAL_SEED, ...)."""
     counts = []
@@ -517,11 +553,11 @@ def print_row(record: dict, alphas: Sequence[float]) -> None:
     for a in alphas:
         for phase in PHASES:
             critic, fixed, truth = record["depths"][phase][str(a)]
-            cells.append(f"{critic:.3f} / {fixed:.3f} / {truth:.3f}")
+            cells.append(" / ".join("-" if np.isnan(value) else f"{value:.3f}" for value in (critic, fixed, truth)))
     print(
         f"| {record['variant']} | {record['seed']} | {record['updates']} | "
         + " | ".join(cells)
-        + f" | {record['train_s']:.0f} |"
+        + (" | - |" if np.isnan(record["train_s"]) else f" | {record['train_s']:.0f} |")
     )
     for row in record["one_step"]:
         print(
@@ -541,12 +577,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--alphas", nargs="+", type=float, default=[0.25, 0.1])
     parser.add_argument("--episodes", type=int, default=10, help="deterministic episodes per reading")
     parser.add_argument("--log", help="append one JSON line per reading to this file")
+    parser.add_argument(
+        "--tabular-only", action="store_true", help="only the truth and the loss's tabular fixed point (no training)"
+    )
     args = parser.parse_args(argv)
     th.set_num_threads(1)
     header = " | ".join(f"{phase} α={a}" for a in args.alphas for phase in PHASES)
     print("tail depth (mean - CVaR_α): critic / the loss's tabular fixed point / truth")
     print(f"| variant | seed | critic updates | {header} | training s |")
     print("|---" * (4 + 3 * len(args.alphas)) + "|")
+    if args.tabular_only:
+        for variant in args.variants:
+            depths = summary(tabular_only(variant, args.alphas, args.episodes), args.alphas)
+            record = {"variant": variant, "seed": "-", "updates": "-", "train_s": float("nan"), "one_step": []}
+            record["depths"] = {phase: {str(a): v for a, v in by_alpha.items()} for phase, by_alpha in depths.items()}
+            print_row(record, args.alphas)
+        return 0
     log = open(args.log, "a", encoding="utf-8") if args.log else None
     try:
         for seed in args.seeds:

@@ -8,6 +8,8 @@
 #   a025     cvar_alpha 0.25, annealed (the YAML entry as shipped)
 #   a01      cvar_alpha 0.1, annealed
 #   a025flat cvar_alpha 0.25 from the first update (cvar_alpha_anneal_steps 0)
+# EXTRA: more -params for every variant (e.g. EXTRA="quantile_kappa:0.01"); TAG prefixes the runs' names so that runs
+# with other EXTRA can share $OUT.
 # Usage: OUT=runs/risky CORE=0 SEEDS="0 1 2" VARIANTS="a1 a025" bash experiments/risky_reach_sweep.sh
 #        python experiments/alpha_sweep_table.py runs/risky --variants a1 a05 a025 a01 a025flat --figure F.png
 set -euo pipefail
@@ -20,6 +22,8 @@ VARIANTS=${VARIANTS:-"a1 a05 a025 a01 a025flat"}
 EPISODES=${EPISODES:-100}
 EVAL_SEED=${EVAL_SEED:-10000}
 TIMESTEPS=${TIMESTEPS:-}  # empty: the entry's n_timesteps; a small value checks the pipeline
+read -r -a EXTRA <<< "${EXTRA:-}"
+TAG=${TAG:+${TAG}_}
 ENV_ID=risky_reach_v0
 mkdir -p "$OUT"
 run() { echo "$(date -u +%H:%M:%S) $*" >&2; taskset -c "$CORE" "$@"; }
@@ -36,11 +40,11 @@ params_of() {
 for variant in $VARIANTS; do
     read -r -a params <<< "$(params_of "$variant")"
     for seed in $SEEDS; do
-        name="${variant}_s$seed"
+        name="${TAG}${variant}_s$seed"
         [ -s "$OUT/eval_$name/results.json" ] && continue  # done before: the sweep can be resumed
         start=$SECONDS
         run "$PY" -m sb3_maddpg train --algo maddpg --env "$ENV_ID" --seed "$seed" ${TIMESTEPS:+-n "$TIMESTEPS"} \
-            -f "$OUT/logs/$name" --eval-freq -1 -params "${params[@]}" >"$OUT/train_$name.log" 2>&1
+            -f "$OUT/logs/$name" --eval-freq -1 -params "${params[@]}" ${EXTRA[@]+"${EXTRA[@]}"} >"$OUT/train_$name.log" 2>&1
         echo $((SECONDS - start)) >"$OUT/train_$name.seconds"
         run "$PY" -m sb3_maddpg evaluate --model "$OUT/logs/$name/maddpg/${ENV_ID}_1/$ENV_ID.zip" --baselines random \
             --episodes "$EPISODES" --seed "$EVAL_SEED" --no-gif --out "$OUT/eval_$name" >"$OUT/eval_$name.log" 2>&1

@@ -235,13 +235,15 @@ def mean_anchored_quantile_loss(
     kappa: float = 1.0,
     squared_mean: bool = False,
     compiled: bool = False,
+    mean_kappa: float = 1.0,
 ) -> th.Tensor:
     """
     The quantile Huber loss on the quantiles' deviations from their mean, plus the scalar critic's TD loss on the mean.
 
     With n current quantiles z_j, their mean z̄ and m target samples t_k with mean t̄:
-    ``loss = qr(z, t) + n * huber_kappa(t̄ - z̄) / (2 kappa)``, where ``qr`` is ``quantile_huber_loss`` but its gradient
-    reaches z only through z_j - z̄ (the part that keeps the mean fixed: d/dz_i = g_i - mean_j g_j). So the mean moves
+    ``loss = qr(z, t) + n * huber_mean_kappa(t̄ - z̄) / (2 mean_kappa)``, where ``qr`` is ``quantile_huber_loss``
+    (threshold kappa) but its gradient reaches z only through z_j - z̄ (the part that keeps the mean fixed:
+    d/dz_i = g_i - mean_j g_j). So the mean moves
     only with the TD error of the mean, as a scalar critic's value does (the second term is a one-quantile critic's loss
     at tau 1/2, times n), and the quantile regression shapes the spread around it.
 
@@ -260,20 +262,23 @@ def mean_anchored_quantile_loss(
 
     :param current_quantiles: the critic's quantiles, shape (..., n)
     :param target_quantiles: samples of the target distribution (treated as constants), shape (..., m)
-    :param kappa: Huber threshold (> 0)
+    :param kappa: Huber threshold (> 0) of the quantile term (the shape)
     :param squared_mean: fit the mean with the squared error instead of the Huber loss
     :param compiled: compute the quantile Huber term with the compiled kernel (``quantile_huber_loss``)
+    :param mean_kappa: Huber threshold (> 0) of the mean's loss (without ``squared_mean``)
     :return: loss per leading index, shape (...)
     """
     n_quantiles = current_quantiles.shape[-1]
     if n_quantiles == 1 and not squared_mean:
-        return quantile_huber_loss(current_quantiles, target_quantiles, kappa=kappa, compiled=compiled)
+        return quantile_huber_loss(current_quantiles, target_quantiles, kappa=mean_kappa, compiled=compiled)
     means = current_quantiles.mean(dim=-1, keepdim=True)
     mean_error = target_quantiles.detach().mean(dim=-1) - means.squeeze(-1)
     if squared_mean:
         mean_loss = 0.5 * mean_error.square()
     else:
-        mean_loss = th.nn.functional.huber_loss(mean_error, th.zeros_like(mean_error), reduction="none", delta=kappa) / kappa
+        mean_loss = (
+            th.nn.functional.huber_loss(mean_error, th.zeros_like(mean_error), reduction="none", delta=mean_kappa) / mean_kappa
+        )
     if n_quantiles == 1:
         return 0.5 * mean_loss
     # the same values; the gradient without its component along the mean

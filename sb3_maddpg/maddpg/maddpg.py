@@ -123,6 +123,13 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         as about -1. Take ``"squared"`` where rare large rewards must count in full (``mean_anchored_quantile_loss``).
         Plain quantiles (``n_quantiles > 1`` without ``mean_anchored_quantiles``) have no mean to fit: ``"squared"``
         is refused there
+    :param quantile_kappa: the threshold kappa (> 0) of the quantile Huber loss that fits the quantiles
+        (``n_quantiles > 1``; the shape around the mean with ``mean_anchored_quantiles``). 1, the default, is
+        QR-DQN's. Below kappa the loss is quadratic, an expectile's rather than a quantile's: where the returns' spread
+        is about kappa or less, targets built from the critic's own quantiles shrink the tail at every bootstrap
+        (Rowland et al., "Statistics and Samples in Distributional RL", ICML 2019), and CVaR reads a tail far
+        shallower than the truth. Take kappa well below the spread (e.g. 0.01 for rewards of order 0.1 to 1) where
+        the tail matters. The mean (``mean_loss``) keeps kappa 1; one quantile (the scalar critic) is not affected
     :param share_actor: one actor shared by all agents instead of one actor per agent
     :param groups: parameter sharing inside groups of agents with the same spaces: ``"teams"`` (the agents of each
         team by PettingZoo's naming, ``adversary_0``, ``adversary_1``, ... one group) or a list of groups of agent
@@ -192,6 +199,7 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         gumbel_temperature: float = 1.0,
         mean_anchored_quantiles: bool = False,
         mean_loss: str = "huber",
+        quantile_kappa: float = 1.0,
         share_actor: bool = False,
         groups: str | list[list[str]] | None = None,
         cuda_graph: bool = False,
@@ -245,6 +253,9 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         )
         self.mean_anchored_quantiles = check_bool("mean_anchored_quantiles", mean_anchored_quantiles)
         self.mean_loss = check_mean_loss(mean_loss)
+        self.quantile_kappa = check_number(
+            "quantile_kappa (the quantile Huber loss's threshold)", quantile_kappa, low=0.0, low_open=True
+        )
         self.share_actor = check_bool("share_actor", share_actor)
         self.groups = check_groups(groups)
         self.cuda_graph = check_bool("cuda_graph", cuda_graph)
@@ -294,6 +305,13 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
             raise ValueError(
                 f"mean_loss='squared' fits a mean, and {self.policy.n_quantiles} plain quantiles have none: use it with "
                 "n_quantiles=1 or with mean_anchored_quantiles=True, or keep mean_loss='huber'"
+            )
+        if self.policy.n_quantiles == 1 and self.quantile_kappa != 1.0:
+            warnings.warn(
+                f"quantile_kappa={self.quantile_kappa} has no effect with n_quantiles=1: the scalar critic's loss is "
+                "mean_loss's (Huber with kappa 1, or squared)",
+                UserWarning,
+                stacklevel=2,
             )
         self.actor_lr_schedule = (
             self.lr_schedule if self.actor_learning_rate is None else FloatSchedule(self.actor_learning_rate)
@@ -380,11 +398,14 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         if self.mean_anchored_quantiles or self.mean_loss == "squared":
             loss_fn = functools.partial(
                 mean_anchored_quantile_loss,
+                kappa=self.quantile_kappa,
                 squared_mean=self.mean_loss == "squared",
                 compiled=self.compile_quantile_loss,
             )
         else:
-            loss_fn = functools.partial(quantile_huber_loss, compiled=self.compile_quantile_loss)
+            # one quantile is the scalar critic: its Huber mean keeps kappa 1
+            kappa = self.quantile_kappa if self.policy.n_quantiles > 1 else 1.0
+            loss_fn = functools.partial(quantile_huber_loss, kappa=kappa, compiled=self.compile_quantile_loss)
         losses = [batch_mean(loss_fn(quantiles.float(), target_quantiles.float()), present) for quantiles in all_quantiles]
         return sum(losses[1:], losses[0]), all_quantiles[0], features  # (N,), (B, N, n_q), (B, N, F)
 

@@ -21,9 +21,9 @@ of the one-step target distribution (the step's reward, with and without the los
 quantiles at the next state and the target actors' action) and that target's loss minimiser.
 
 Variants (``VARIANTS``): the YAML entry's mean-anchored critic and the plain QR loss, 25 or 100 quantiles, the zone's
-loss 1 or 5, and the Huber threshold kappa 0.1 or 0.01 instead of 1 (the library's loss written out here with that kappa,
-``kappa_critic_loss``). The other settings are the zoo_configs/maddpg.yml entry's: lr 1e-3, batch 256, tau 0.01,
-gamma 0.95, net_arch [64, 64]. One update takes about 7 ms on one (shared) CPU core with 25 quantiles, 17 ms with 100.
+loss 1 or 5, and the Huber threshold kappa 0.1 or 0.01 instead of 1 (the library's ``quantile_kappa``). The other
+settings are the zoo_configs/maddpg.yml entry's: lr 1e-3, batch 256, tau 0.01, gamma 0.95, net_arch [64, 64]. One
+update takes about 7 ms on one (shared) CPU core with 25 quantiles, 17 ms with 100.
 
     python experiments/quantile_tail_evaluation.py --variants anchored plain plain_kappa0.01 --checkpoints 5000 15000 30000
     python experiments/quantile_tail_evaluation.py --tabular-only --variants anchored plain_q100 plain_kappa0.1  # seconds
@@ -43,11 +43,11 @@ from risky_reach_critic_view import EVAL_SEED, true_tail_depth
 from stable_baselines3.common.utils import polyak_update
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
-from sb3_maddpg.common.distributional import cvar, mean_anchored_quantile_loss, quantile_huber_loss, quantile_midpoints
+from sb3_maddpg.common.distributional import cvar, quantile_midpoints
 from sb3_maddpg_envs.risky_reach_v0 import DISTANCE_COST, ZONE, hand_made_policy, in_zone, parallel_env
 
 # name: (mean_anchored_quantiles, n_quantiles, env kwargs, kappa). kappa None: the library's critic_loss (Huber kappa 1);
-# a number: the same loss written here with that Huber threshold (``kappa_critic_loss``), for the mean-anchored form
+# a number: ``quantile_kappa`` with that Huber threshold, for the mean-anchored form
 # with the squared mean (the mean of the targets; a Huber mean with a small kappa would be a median)
 VARIANTS: dict[str, tuple[bool, int, dict, float | None]] = {
     "anchored": (True, 25, {}, None),
@@ -163,39 +163,22 @@ def clone_policy(model: MADDPG, observations: np.ndarray, max_steps: int = 4_000
     return mse
 
 
-def kappa_critic_loss(model: MADDPG, replay_data, kappa: float) -> th.Tensor:
-    """
-    ``MADDPG.critic_loss`` (one critic network per agent, no departures, no target smoothing) with the Huber threshold
-    ``kappa`` instead of 1; with ``mean_anchored_quantiles`` the mean's loss is the squared error. Per-agent loss (N,).
-    """
-    with th.no_grad():
-        next_features = model.critic_target.encode(replay_data.next_observations)
-        next_actions = model.actor_target(replay_data.next_observations)
-        next_quantiles = model.critic_target.quantiles_from_features(next_features, next_actions)
-        not_done = 1.0 - replay_data.dones.unsqueeze(-1)
-        targets = replay_data.rewards.unsqueeze(-1) + not_done * model.gamma * next_quantiles
-    features = model.critic.encode(replay_data.observations)
-    anchored = model.mean_anchored_quantiles
-    quantiles = model.critic.all_quantiles_from_features(features, replay_data.actions, shape_gradient=not anchored)[0]
-    if anchored:
-        return mean_anchored_quantile_loss(quantiles, targets, kappa=kappa, squared_mean=True).mean(dim=0)
-    return quantile_huber_loss(quantiles, targets, kappa=kappa).mean(dim=0)
-
-
 def train_critic(model: MADDPG, n_updates: int, kappa: float | None = None) -> None:
     """
-    Critic updates only: the library's critic loss (``kappa`` None; else ``kappa_critic_loss``), the critic optimizer,
-    SB3's polyak update of the critic targets.
+    Critic updates only: the library's critic loss (with ``kappa``: ``quantile_kappa`` kappa, and for the
+    mean-anchored form the squared mean, ``mean_loss="squared"``), the critic optimizer, SB3's polyak update of the
+    critic targets.
     """
+    if kappa is not None:
+        model.quantile_kappa = kappa
+        if model.mean_anchored_quantiles:
+            model.mean_loss = "squared"  # a Huber mean with a small kappa would be a median
     model.policy.set_training_mode(True)
     critic, optimizer = model.critic, model.critic.optimizer
     online, target = list(critic.parameters()), list(model.critic_target.parameters())
     for _ in range(n_updates):
         replay_data = model.replay_buffer.sample(model.batch_size)
-        if kappa is None:
-            loss, _, _ = model.critic_loss(replay_data)
-        else:
-            loss = kappa_critic_loss(model, replay_data, kappa)
+        loss, _, _ = model.critic_loss(replay_data)
         optimizer.zero_grad(set_to_none=True)
         loss.sum().backward()
         optimizer.step()

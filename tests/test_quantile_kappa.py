@@ -110,7 +110,7 @@ def test_quantile_kappa_is_checked_warned_about_kept_and_passed_on_by_matd3(tmp_
     for bad in (0.0, -1.0, float("nan"), "0.1", True):
         with pytest.raises(ValueError, match="quantile_kappa"):
             _model(quantile_kappa=bad)
-    with pytest.warns(UserWarning, match="quantile_kappa=0.1 has no effect with n_quantiles=1"):
+    with pytest.warns(UserWarning, match=r"quantile_kappa=0.1 has no effect with n_quantiles=1"):
         _model(quantile_kappa=0.1, policy_kwargs=dict(n_quantiles=1))
     model = _model(quantile_kappa=0.01, policy_kwargs=dict(n_quantiles=5))
     model.save(tmp_path / "model.zip")

@@ -48,22 +48,17 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
     Multi-Agent DDPG with centralised quantile critics and a CVaR_alpha actor objective.
 
     Decentralised actors mu_i(o_i) (one per agent, or one shared); centralised critics Z_i(o, a) with ``n_quantiles``
-    outputs at the midpoints tau_j = (j + 0.5) / n, trained with the quantile Huber loss (kappa = 1) towards
+    outputs at the midpoints tau_j = (j + 0.5) / n, trained with the quantile Huber loss (kappa ``quantile_kappa``) towards
     r_i + gamma (1 - d) Z_i'(o', a'), a'_j = mu_j'(o'_j); actor i maximises CVaR_alpha(Z_i(o, a)) with
     a_i = mu_i(o_i) and the other agents' actions from the batch (MADDPG: Lowe et al. 2017, https://arxiv.org/abs/1706.02275;
     quantile critics: QR-DQN, Dabney et al. 2018, https://arxiv.org/abs/1710.10044). With several critic networks per
     agent (``policy_kwargs=dict(n_critics=2)``, what ``MATD3`` does) the target takes the smaller of the target
     networks' values at each quantile level.
 
-    **Discrete actions** (a ``Discrete(n)`` action space, e.g. MPE2's default) follow the MADDPG paper's
-    Gumbel-softmax: each actor outputs n logits; the env receives integers; the critics and the replay buffer see
-    one-hot vectors. The actor loss scores the straight-through Gumbel-softmax sample (one-hot forward, the gradient
-    of softmax((logits + g) / ``gumbel_temperature``)); the rollouts explore by sampling softmax(logits) (Gumbel-max)
-    instead of adding ``action_noise``, which is refused; random actions before ``learning_starts`` are uniform
-    integers; ``predict(deterministic=True)`` gives the argmax. The target actors give the one-hot argmax: the
-    target then values the greedy policy that ``predict`` deploys, like DDPG's deterministic target, without the
-    variance of a sampled target action. Target policy smoothing (``target_policy_noise``, MATD3's 0.2) is not
-    applied to one-hot actions: Gaussian noise on a one-hot vector gives inputs that no stored action resembles.
+    **Discrete actions** (``Discrete(n)``, e.g. MPE2's default) follow the MADDPG paper's Gumbel-softmax: each actor
+    outputs n logits, the env receives integers, the critics and the buffer one-hot vectors; the actor loss scores the
+    straight-through Gumbel-softmax sample, the rollouts explore by sampling the logits (``action_noise`` is refused),
+    the target actors give the one-hot argmax, and target policy smoothing is not applied (docs/algorithm.md, 6b).
 
     The environment is an SB3 VecEnv with one row per agent and copy, row = copy * n_agents + agent
     (see ``make_multiagent_vec_env``); the team, the timestep (one joint step of one environment copy), the rollout
@@ -109,27 +104,16 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
         Discrete actions: lower makes the soft sample whose gradient is used closer to the one-hot sample (less
         biased, noisier gradient), higher smoother; it changes neither the sampled actions nor anything with Box
         actions (default 1.0, as in the MADDPG paper's code)
-    :param mean_anchored_quantiles: with ``n_quantiles > 1``: each critic network has a mean output of its own
-        beside the quantiles' deviations from it (quantiles = mean + deviations - their mean); the mean is fitted with
-        the scalar critic's TD loss (towards the mean of the target quantiles) and the quantile Huber loss fits only
-        the deviations, through the output layer alone (``mean_anchored_quantile_loss``). The layers below and the
-        encoders then learn as a scalar critic's do, and a risk-neutral actor (``cvar_alpha=1``) follows the same value;
-        CVaR_alpha < 1 reads the lower quantiles. False, the default, is QR-DQN's loss on plain quantile outputs; with
-        one quantile the two are the same
-    :param mean_loss: the loss of the critics' mean (the scalar critic with ``n_quantiles=1``, or the mean of
-        ``mean_anchored_quantiles``): ``"huber"``, the default (kappa 1, as QR-DQN's quantiles), or ``"squared"``, TD3's
-        and the MADDPG paper's squared TD error. The Huber fit moves with the sign of errors beyond 1, not their size:
-        it settles between the median and the mean, and a rare large loss (a crash of -100 once in ten steps) weighs
-        as about -1. Take ``"squared"`` where rare large rewards must count in full (``mean_anchored_quantile_loss``).
-        Plain quantiles (``n_quantiles > 1`` without ``mean_anchored_quantiles``) have no mean to fit: ``"squared"``
-        is refused there
-    :param quantile_kappa: the threshold kappa (> 0) of the quantile Huber loss that fits the quantiles
-        (``n_quantiles > 1``; the shape around the mean with ``mean_anchored_quantiles``). 1, the default, is
-        QR-DQN's. Below kappa the loss is quadratic, an expectile's rather than a quantile's: where the returns' spread
-        is about kappa or less, targets built from the critic's own quantiles shrink the tail at every bootstrap
-        (Rowland et al., "Statistics and Samples in Distributional RL", ICML 2019), and CVaR reads a tail far
-        shallower than the truth. Take kappa well below the spread (e.g. 0.01 for rewards of order 0.1 to 1) where
-        the tail matters. The mean (``mean_loss``) keeps kappa 1; one quantile (the scalar critic) is not affected
+    :param mean_anchored_quantiles: with ``n_quantiles > 1``: each critic network has a mean output of its own beside
+        the quantiles' deviations from it; the mean is fitted with the scalar critic's TD loss and the quantile loss
+        fits only the deviations, through the output layer alone (``mean_anchored_quantile_loss``), so that a
+        risk-neutral actor follows the scalar critic's value. False, the default, is QR-DQN's loss on plain quantiles
+    :param mean_loss: the loss of the critics' mean (the scalar critic, or the mean of ``mean_anchored_quantiles``):
+        ``"huber"``, the default (kappa 1), or ``"squared"``, TD3's squared TD error, where rare large rewards must count
+        in full (the Huber fit weighs a crash of -100 once in ten steps as about -1); refused for plain quantiles
+    :param quantile_kappa: the quantile Huber loss's threshold kappa (> 0) for ``n_quantiles > 1``; 1, the default, is
+        QR-DQN's. Where the returns spread by about kappa or less the fit is an expectile's and the tail shrinks at
+        every bootstrap: take e.g. 0.01 for rewards of order 0.1 to 1 where the tail matters (docs/algorithm.md)
     :param share_actor: one actor shared by all agents instead of one actor per agent
     :param groups: parameter sharing inside groups of agents with the same spaces: ``"teams"`` (the agents of each
         team by PettingZoo's naming, ``adversary_0``, ``adversary_1``, ... one group) or a list of groups of agent
@@ -307,12 +291,10 @@ class MADDPG(MultiAgentOffPolicyAlgorithm):
                 "n_quantiles=1 or with mean_anchored_quantiles=True, or keep mean_loss='huber'"
             )
         if self.policy.n_quantiles == 1 and self.quantile_kappa != 1.0:
-            warnings.warn(
-                f"quantile_kappa={self.quantile_kappa} has no effect with n_quantiles=1: the scalar critic's loss is "
-                "mean_loss's (Huber with kappa 1, or squared)",
-                UserWarning,
-                stacklevel=2,
+            message = (
+                f"quantile_kappa={self.quantile_kappa} has no effect with n_quantiles=1 (the scalar critic uses mean_loss)"
             )
+            warnings.warn(message, UserWarning, stacklevel=2)
         self.actor_lr_schedule = (
             self.lr_schedule if self.actor_learning_rate is None else FloatSchedule(self.actor_learning_rate)
         )

@@ -26,6 +26,7 @@ import numpy as np
 import torch as th
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.common.diagnostics import own_action_gradients
 from sb3_maddpg.common.distributional import cvar
 from sb3_maddpg_envs.risky_reach_v0 import ZONE, in_zone, parallel_env
 
@@ -87,12 +88,8 @@ def critic_view(model: MADDPG, n_episodes: int, alpha: float, seed: int = EVAL_S
             episode_depths.append((quantiles.mean(dim=-1) - cvar(quantiles, alpha)).numpy())
             before = (env.positions[:, 0] <= x_min) & (env.positions[:, 1] > y_min) & (env.positions[:, 1] < y_max)
             if before.any():
-                gradients = []
-                for objective in (lambda q: q.mean(dim=-1), lambda q: cvar(q, alpha)):
-                    own = joint.clone().requires_grad_(True)
-                    value = objective(policy.critic.quantiles_with_own_actions(features, joint, own)).sum()
-                    (gradient,) = th.autograd.grad(value, own)
-                    gradients.append(gradient[0].numpy())
+                objectives = (lambda q: q.mean(dim=-1), lambda q: cvar(q, alpha))
+                gradients = [g[0].numpy() for g in own_action_gradients(policy.critic, features, joint, objectives)]
                 around = np.where(env.positions[:, 1] >= 0.0, 1.0, -1.0)  # the nearer edge's side
                 for i in np.flatnonzero(before):
                     around_mean.append(bool(gradients[0][i, 1] * around[i] > 0))

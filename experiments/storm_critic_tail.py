@@ -25,6 +25,7 @@ import numpy as np
 import torch as th
 
 from sb3_maddpg import MADDPG
+from sb3_maddpg.common.diagnostics import own_action_gradients
 from sb3_maddpg.common.distributional import cvar
 from sb3_maddpg.zoo.registry import make_multiagent_env
 from sb3_maddpg_envs.uav_coverage.hazards import in_zone
@@ -64,13 +65,8 @@ def critic_tails(model: MADDPG, n_episodes: int, seed: int = EVAL_SEED, alpha: f
                 features = policy.critic.encode(obs)
                 quantiles = policy.critic.quantiles_from_features(features, joint)[0]  # (N, n_q)
             # d(critic i's mean or CVaR)/d(UAV i's own action), all UAVs at once: critic i reads own[:, i] only
-            gradients = []
-            for objective in (lambda q: q.mean(dim=-1), lambda q: cvar(q, alpha)):
-                own = joint.clone().requires_grad_(True)
-                # autograd.grad, not backward: only the actions' gradient, none accumulated in the critic's weights
-                value = objective(policy.critic.quantiles_with_own_actions(features, joint, own)).sum()
-                (gradient,) = th.autograd.grad(value, own)
-                gradients.append(gradient[0].numpy())
+            objectives = (lambda q: q.mean(dim=-1), lambda q: cvar(q, alpha))
+            gradients = [g[0].numpy() for g in own_action_gradients(policy.critic, features, joint, objectives)]
             exits = exit_directions(core.positions, core.storm_zone)
             observations, *_ = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
             active = core.active.copy()

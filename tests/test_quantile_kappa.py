@@ -117,3 +117,28 @@ def test_quantile_kappa_is_checked_warned_about_kept_and_passed_on_by_matd3(tmp_
     assert MADDPG.load(tmp_path / "model.zip").quantile_kappa == 0.01
     assert _model(MATD3, quantile_kappa=0.02, policy_kwargs=dict(n_quantiles=5)).quantile_kappa == 0.02
     assert _model(policy_kwargs=dict(n_quantiles=5)).quantile_kappa == 1.0  # QR-DQN's default
+
+
+def test_own_action_gradients_match_finite_differences():
+    from sb3_maddpg.common.diagnostics import own_action_gradients
+
+    model = _model(policy_kwargs=dict(n_quantiles=5))
+    critic = model.critic
+    observations = th.as_tensor(
+        np.random.default_rng(0).normal(size=(3, model.n_agents, *model.observation_space.shape)), dtype=th.float32
+    )
+    actions = th.rand(3, model.n_agents, model.action_space.shape[0], generator=th.Generator().manual_seed(0)) * 2 - 1
+    with th.no_grad():
+        features = critic.encode(observations)
+    objectives = (lambda q: q.mean(dim=-1), lambda q: cvar(q, 0.4))
+    gradients = own_action_gradients(critic, features, actions, objectives)
+    eps = 1e-3
+    for objective, gradient in zip(objectives, gradients, strict=True):
+        for axis in range(actions.shape[-1]):
+            step = th.zeros_like(actions)
+            step[..., axis] = eps
+            with th.no_grad():
+                up = objective(critic.quantiles_with_own_actions(features, actions, actions + step))
+                down = objective(critic.quantiles_with_own_actions(features, actions, actions - step))
+            assert th.allclose(gradient[..., axis], (up - down) / (2 * eps), atol=2e-3)
+    assert all(parameter.grad is None for parameter in critic.parameters())  # nothing reaches the weights

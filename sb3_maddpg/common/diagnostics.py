@@ -4,6 +4,7 @@ agent i, the teammates' actions held fixed. A critic that cannot resolve its own
 a large team) scores every candidate alike, and its actor gets no direction from it.
 """
 
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import torch as th
@@ -63,3 +64,28 @@ def own_action_value_range(
     if present is None:
         return ranges.mean(dim=0)
     return (ranges * present).sum(dim=0) / present.sum(dim=0).clamp(min=1.0)
+
+
+def own_action_gradients(
+    critic: "QuantileCriticBase",
+    features: th.Tensor,
+    actions: th.Tensor,
+    objectives: Sequence[Callable[[th.Tensor], th.Tensor]],
+) -> list[th.Tensor]:
+    """
+    Where each objective of critic i's quantiles pulls agent i's own action: its gradient with respect to that action,
+    the teammates keeping the batch's actions (no gradient reaches the critic's weights).
+
+    :param critic: the critics (their first network is read)
+    :param features: the critics' encodings of the observations, (B, N, F)
+    :param actions: the joint actions, (B, N, A)
+    :param objectives: functions of the quantiles (..., n) to a value per leading index, e.g. their mean or ``cvar``
+    :return: one (B, N, A) gradient per objective
+    """
+    gradients = []
+    for objective in objectives:
+        own = actions.detach().clone().requires_grad_(True)
+        value = objective(critic.quantiles_with_own_actions(features, actions, own)).sum()
+        (gradient,) = th.autograd.grad(value, own)
+        gradients.append(gradient)
+    return gradients

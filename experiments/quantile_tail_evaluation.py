@@ -122,9 +122,12 @@ def collect(model: MADDPG, n_steps: int, env_kwargs: dict, seed: int) -> np.ndar
     return np.stack(seen).astype(np.float32)
 
 
-def deterministic_observations(n_episodes: int, env_kwargs: dict, seed: int = EVAL_SEED) -> np.ndarray:
-    """The joint observations along the noise-free hand-made paths, (T, N, obs_dim)."""
-    seen = []
+def hand_made_episodes(n_episodes: int, env_kwargs: dict, seed: int = EVAL_SEED) -> tuple[np.ndarray, list[int]]:
+    """
+    The noise-free hand-made paths (reset seeds ``seed``, ...): their joint observations (T, N, obs_dim) and the
+    team's zone steps per episode.
+    """
+    seen, counts = [], []
     for episode in range(n_episodes):
         env = parallel_env(**env_kwargs)
         observations, _ = env.reset(seed=seed + episode)
@@ -132,8 +135,9 @@ def deterministic_observations(n_episodes: int, env_kwargs: dict, seed: int = EV
             obs = np.stack([observations[a] for a in env.possible_agents])
             seen.append(obs)
             actions = hand_made_actions(obs)
-            observations, *_ = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
-    return np.stack(seen).astype(np.float32)
+            observations, _, _, _, infos = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
+        counts.append(sum(info["zone_steps"] for info in infos.values()))
+    return np.stack(seen).astype(np.float32), counts
 
 
 def clone_policy(model: MADDPG, observations: np.ndarray, max_steps: int = 4_000, target_mse: float = 2e-5) -> float:
@@ -452,10 +456,10 @@ def run(variant: str, seed: int, buffer_steps: int, checkpoints: Sequence[int], 
     model = make_model(variant, seed, buffer_steps)
     seen = collect(model, buffer_steps, env_kwargs, seed)
     # the noisy data's observations and those of the noise-free paths (the readings' first 20 episodes among them)
-    mse = clone_policy(model, np.concatenate([seen, deterministic_observations(20, env_kwargs)]))
+    mse = clone_policy(model, np.concatenate([seen, hand_made_episodes(20, env_kwargs)[0]]))
     probe = parallel_env(**env_kwargs)
     truths = Truths(float(model.gamma), alphas, variant, probe.zone_prob, probe.zone_loss)
-    hand = deterministic_zone_steps(n_episodes, env_kwargs)
+    hand = hand_made_episodes(n_episodes, env_kwargs)[1]
     view = read_critic(model, env_kwargs, n_episodes, truths)
     print(
         f"# {variant} seed {seed}: behaviour cloning MSE {mse:.1e}; team zone steps per episode, cloned actor "
@@ -515,20 +519,6 @@ def tabular_only(variant: str, alphas: Sequence[float], n_episodes: int) -> dict
     view = {"phase": np.array(phases), "true_depth": np.array(true_depths), "fixed_depth": np.array(fixed_depths)}
     view["depth"] = np.full_like(view["true_depth"], np.nan)
     return view
-
-
-def deterministic_zone_steps(n_episodes: int, env_kwargs: dict) -> list[int]:
-    """The team's zone steps per episode of the noise-free hand-made policy (reset seeds EVAL_SEED, ...)."""
-    counts = []
-    for episode in range(n_episodes):
-        env = parallel_env(**env_kwargs)
-        observations, _ = env.reset(seed=EVAL_SEED + episode)
-        while env.agents:
-            obs = np.stack([observations[a] for a in env.possible_agents])
-            actions = hand_made_actions(obs)
-            observations, _, _, _, infos = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
-        counts.append(sum(info["zone_steps"] for info in infos.values()))
-    return counts
 
 
 def print_row(record: dict, alphas: Sequence[float]) -> None:

@@ -1,5 +1,6 @@
 """
-This package's env ids for ``sb3_maddpg``'s command line (``--env``): the UAV coverage tasks and ``risky_reach_v0``.
+This package's env ids for ``sb3_maddpg``'s command line (``--env``): the UAV coverage tasks, ``risky_reach_v0`` and
+``risky_hover_v0``.
 
 ``sb3_maddpg`` finds them through the entry point that setup.cfg declares in the group ``sb3_maddpg.envs``: when an
 id is first looked up, it calls :func:`register_envs` with its ``register_multiagent_env``, so this package needs no
@@ -43,6 +44,9 @@ ENVS: dict[str, tuple[str, dict[str, Any]]] = {
     # A small task where the mean and the lower tail prefer different ways (a visible risky zone across the short
     # way): the proving ground of the CVaR actor (risky_reach_v0.py)
     "risky_reach_v0": ("sb3_maddpg_envs.risky_reach_v0:parallel_env", {}),
+    # A small task where the lower tail prefers to hold a little outside a hazard that the mean enters: a local change,
+    # which a deterministic policy gradient can climb (risky_hover_v0.py)
+    "risky_hover_v0": ("sb3_maddpg_envs.risky_hover_v0:parallel_env", {}),
 }
 
 

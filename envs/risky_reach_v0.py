@@ -81,7 +81,7 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
         jitter = check_number("jitter", jitter, 0.0, 0.2)
         max_cycles = check_int("max_cycles", max_cycles, 1, 10_000)
         if render_mode is not None:
-            raise ValueError(f"risky_reach_v0 does not render: render_mode must be None, got {render_mode!r}")
+            raise ValueError(f"{self.metadata['name']} does not render: render_mode must be None, got {render_mode!r}")
         self.render_mode = render_mode
         self.zone_prob, self.zone_loss, self.jitter = zone_prob, zone_loss, jitter
         self.max_cycles = max_cycles
@@ -121,9 +121,9 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
         if not np.isfinite(moves).all():
             raise ValueError(f"actions must be finite numbers, got {actions!r}")
         self.positions = np.clip(self.positions + SPEED * np.clip(moves, -1.0, 1.0), -1.0, 1.0)
-        inside = in_zone(self.positions)
+        inside = self._in_zone()
         # One draw per agent and step, inside or not, so that the random stream does not depend on the path
-        losses = (self._rng.random(len(inside)) < self.zone_prob) & inside
+        losses = self._rng.random(len(inside)) < self._loss_probabilities()
         self.zone_steps += inside
         self.zone_losses += losses
         distances = np.linalg.norm(self.landmarks - self.positions, axis=1)
@@ -141,6 +141,14 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
             dict.fromkeys(agents, truncated),
             infos,
         )
+
+    def _in_zone(self) -> np.ndarray:
+        """Whether each agent's position lies in the zone (counted in ``zone_steps``), (N,) booleans."""
+        return in_zone(self.positions)
+
+    def _loss_probabilities(self) -> np.ndarray:
+        """The chance of a loss at each agent's position, (N,): ``zone_prob`` inside the zone, 0 outside."""
+        return self.zone_prob * self._in_zone()
 
     def _observations(self) -> dict[str, np.ndarray]:
         x, y = self.positions[:, 0], self.positions[:, 1]

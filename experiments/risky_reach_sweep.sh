@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The risk level sweep on risky_reach_v0 (envs/risky_reach_v0.py; issue "CVaR that pays"): MADDPG with the YAML
+# The risk level sweep on risky_reach_v0 (envs/risky_reach_v0.py; issue "CVaR that pays"), or on ENV_ID (e.g.
+# risky_hover_v0, envs/risky_hover_v0.py): MADDPG with the YAML
 # entry's settings and one CVaR level per variant, each seed trained and then evaluated on $EPISODES episodes (reset
 # seeds $EVAL_SEED...) with random actions beside it; experiments/alpha_sweep_table.py draws the table and the figure.
 # Variants (VARIANTS, in this order by default):
@@ -24,7 +25,7 @@ EVAL_SEED=${EVAL_SEED:-10000}
 TIMESTEPS=${TIMESTEPS:-}  # empty: the entry's n_timesteps; a small value checks the pipeline
 read -r -a EXTRA <<< "${EXTRA:-}"
 TAG=${TAG:+${TAG}_}
-ENV_ID=risky_reach_v0
+ENV_ID=${ENV_ID:-risky_reach_v0}
 mkdir -p "$OUT"
 run() { echo "$(date -u +%H:%M:%S) $*" >&2; taskset -c "$CORE" "$@"; }
 params_of() {

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
+from risky_testing import play
 
-from sb3_maddpg.zoo.registry import make_multiagent_env
 from sb3_maddpg_envs import risky_reach_v0
 from sb3_maddpg_envs.risky_reach_v0 import ZONE, hand_made_policy
 
@@ -36,30 +36,14 @@ def test_a_step_by_hand():
     assert rewards["agent_0"] == pytest.approx(-0.1 * distance) and infos["agent_0"] == {"zone_steps": 1, "zone_losses": 0}
 
 
-def play(way: str, n_episodes: int) -> tuple[np.ndarray, int]:
-    """The team returns of ``n_episodes`` episodes (reset seeds 0, 1, ...) of a hand-made policy, and its zone steps."""
-    env = make_multiagent_env("risky_reach_v0")
-    returns, zone_steps = [], 0
-    for episode in range(n_episodes):
-        observations, _ = env.reset(seed=episode)
-        total = 0.0
-        while env.agents:
-            actions = {agent: hand_made_policy(observation, way) for agent, observation in observations.items()}
-            observations, rewards, _, _, infos = env.step(actions)
-            total += sum(rewards.values())
-        returns.append(total)
-        zone_steps += sum(info["zone_steps"] for info in infos.values())
-    return np.sort(returns), zone_steps
-
-
 def test_the_mean_goes_through_and_the_tail_goes_around():
     """
     500 episodes of each hand-made policy (the docstring's 1 000: -2.733 and -2.957 in the mean, -3.870 and -3.053 in
     CVaR_0.1): through is better in the mean, around in the worst tenth, each by a margin several standard errors wide
     (a team return's standard deviation through is about 0.5, so its 500-episode mean moves by about 0.02).
     """
-    through, through_steps = play("through", 500)
-    around, around_steps = play("around", 500)
+    through, through_steps = play("risky_reach_v0", lambda obs: hand_made_policy(obs, "through"), 500)
+    around, around_steps = play("risky_reach_v0", lambda obs: hand_made_policy(obs, "around"), 500)
     assert around_steps == 0 and through_steps == 500 * 2 * 4  # 4 steps inside an agent: x = -0.2 (rounded), -0.1, 0, 0.1
     assert through.mean() > around.mean() + 0.15
     assert through[:50].mean() < around[:50].mean() - 0.5

@@ -1,20 +1,23 @@
 """
-Does the quantile critic see risky_reach_v0's zone, and where does the CVaR actor's gradient pull? For saved MADDPG
-models with a quantile critic, play deterministic episodes and, at every agent-step, read critic i's quantiles of
-agent i's return for the team's actual joint action, beside the truth it should learn.
+Does the quantile critic see a small risky task's hazard, and where does the CVaR actor's gradient pull? For saved
+MADDPG models with a quantile critic on ``risky_reach_v0`` or ``risky_hover_v0``, play deterministic episodes and, at
+every agent-step, read critic i's quantiles of agent i's return for the team's actual joint action, beside the truth
+it should learn.
 
-The truth is exact here: the task's losses do not move the agents and no observation shows them, so a deterministic
+The truth is exact here: the tasks' losses do not move the agents and no observation shows them, so a deterministic
 team flies the same path whatever the draws, and the loss part of agent i's return from step t is
-``-zone_loss * sum_k gamma^k B_{t+k}`` with ``B`` Bernoulli(``zone_prob``) at the steps that end inside the zone. Its
-tail depth (mean minus CVaR_alpha) is what the critic's tail depth should be; the rest of the return is deterministic
-and adds nothing to the depth.
+``-loss * sum_k gamma^k B_{t+k}`` with ``B_k`` Bernoulli(the loss chance at the position step k ends at: ``zone_prob``
+inside risky_reach_v0's zone, the graded hazard on risky_hover_v0). Its tail depth (mean minus CVaR_alpha) is what the
+critic's tail depth should be; the rest of the return is deterministic and adds nothing to the depth.
 
-For the agent-steps before the zone (left of it, inside its band of y), it also reads where the actor's objective
-pulls: the gradient of critic i's mean and of its CVaR_alpha with respect to agent i's own action, and the share of
-those steps where its y component points around the zone (away from the zone's middle line, towards the nearer of
-its top and bottom edges).
+For the agent-steps where the risky choice is made, it also reads where the actor's objective pulls: the gradient of
+critic i's mean and of its CVaR_alpha with respect to agent i's own action, and the share of those steps where its y
+component points to safety. On risky_reach_v0 these are the steps before the zone (left of it, inside its band of
+y), and safety is around it (towards the nearer of its top and bottom edges); on risky_hover_v0 the steps within 0.15
+of the hazard's edge, and safety is down, out of the hazard.
 
     python experiments/risky_reach_critic_view.py runs/risky/logs/a025_s0/maddpg/risky_reach_v0_1/risky_reach_v0.zip
+    python experiments/risky_reach_critic_view.py runs/hover/logs/a025_s0/maddpg/risky_hover_v0_1/risky_hover_v0.zip
 """
 
 from __future__ import annotations
@@ -28,55 +31,73 @@ import torch as th
 from sb3_maddpg import MADDPG
 from sb3_maddpg.common.diagnostics import own_action_gradients
 from sb3_maddpg.common.distributional import cvar
-from sb3_maddpg_envs.risky_reach_v0 import ZONE, in_zone, parallel_env
+from sb3_maddpg_envs import risky_hover_v0, risky_reach_v0
+from sb3_maddpg_envs.risky_reach_v0 import ZONE, RiskyReachEnv
 
 EVAL_SEED = 10_000  # the first evaluation episode of experiments/risky_reach_sweep.sh
 N_DRAWS = 20_000  # Monte Carlo draws of the losses for the truth's tail
 
 
-def true_tail_depth(inside_ahead: np.ndarray, gamma: float, alpha: float, zone_prob: float, zone_loss: float) -> float:
+def true_tail_depth(probabilities_ahead: np.ndarray, gamma: float, alpha: float, loss: float) -> float:
     """
-    Mean minus CVaR_alpha of the loss part of a return whose steps end inside the zone where ``inside_ahead`` is true.
+    Mean minus CVaR_alpha of the loss part of a return whose steps end with a loss with ``probabilities_ahead``.
 
-    :param inside_ahead: (H,) booleans, the step of the read value first
+    :param probabilities_ahead: (H,) the loss chance of each step, the step of the read value first
     :param gamma: the discount
     :param alpha: the CVaR level
-    :param zone_prob: the chance of a loss at a step inside
-    :param zone_loss: its cost
+    :param loss: the cost of a loss
     :return: the tail depth (>= 0)
     """
-    weights = gamma ** np.arange(len(inside_ahead)) * inside_ahead
-    if not weights.any():
+    if not probabilities_ahead.any():
         return 0.0
     rng = np.random.default_rng(0)
-    losses = -zone_loss * (rng.random((N_DRAWS, len(weights))) < zone_prob) @ weights
+    draws = rng.random((N_DRAWS, len(probabilities_ahead))) < probabilities_ahead
+    losses = -loss * draws @ (gamma ** np.arange(len(probabilities_ahead)))
     worst = np.sort(losses)[: max(1, int(round(alpha * N_DRAWS)))]
     return float(losses.mean() - worst.mean())
 
 
-def critic_view(model: MADDPG, n_episodes: int, alpha: float, seed: int = EVAL_SEED) -> dict[str, np.ndarray]:
+def choice_steps(env: RiskyReachEnv) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Where each agent makes the task's risky choice (before risky_reach_v0's zone, near risky_hover_v0's edge), (N,)
+    booleans, and the sign of the y move towards safety there, (N,).
+    """
+    if isinstance(env, risky_hover_v0.RiskyHoverEnv):
+        return np.abs(env.positions[:, 1] - env.edge) <= 0.15, -np.ones(len(env.positions))
+    x_min, _, y_min, y_max = ZONE
+    x, y = env.positions[:, 0], env.positions[:, 1]
+    return (x <= x_min) & (y > y_min) & (y < y_max), np.where(y >= 0.0, 1.0, -1.0)  # around: the nearer edge's side
+
+
+TASKS = {"risky_reach_v0": risky_reach_v0, "risky_hover_v0": risky_hover_v0}
+
+
+def critic_view(
+    model: MADDPG, n_episodes: int, alpha: float, seed: int = EVAL_SEED, env_id: str = "risky_reach_v0"
+) -> dict[str, np.ndarray]:
     """
     Critic i's tail depth and the truth at every agent-step; the own-action gradients' pull before the zone.
 
-    :param model: a trained team on ``risky_reach_v0`` whose policy has ``n_quantiles > 1``
+    :param model: a trained team on ``risky_reach_v0`` or ``risky_hover_v0`` whose policy has ``n_quantiles > 1``
     :param n_episodes: deterministic episodes, reset seeds ``seed``, ``seed + 1``, ...
     :param alpha: the CVaR level read
     :param seed: the first reset seed
-    :return: per agent-step ``phase`` (0 before the zone, 1 inside, 2 elsewhere), ``depth`` and ``true_depth``;
-        per agent-step before the zone ``around_mean`` and ``around_cvar`` (whether the gradient's y component points
-        around the zone)
+    :param env_id: the task, one of :data:`TASKS`
+    :return: per agent-step ``phase`` (0 at a choice step, 1 inside the zone, 2 elsewhere), ``depth`` and
+        ``true_depth``; per choice step ``around_mean`` and ``around_cvar`` (whether the gradient's y component points
+        to safety)
     """
     policy = model.policy
     if policy.n_quantiles < 2:
         raise ValueError(f"{type(model).__name__} has {policy.n_quantiles} quantile: there is no tail to read")
     gamma = float(model.gamma)
     phases, depths, true_depths, around_mean, around_cvar = [], [], [], [], []
-    x_min, _, y_min, y_max = ZONE
+    task = TASKS[env_id]
     for episode in range(n_episodes):
-        env = parallel_env()
+        env = task.parallel_env()
         observations, _ = env.reset(seed=seed + episode)
         n_agents = len(env.possible_agents)
-        episode_depths, episode_phases, inside_after = [], [], []
+        episode_depths, episode_phases, probabilities_after = [], [], []
         while env.agents:
             stacked = np.stack([observations[agent] for agent in env.possible_agents])
             actions, _ = model.predict(stacked, deterministic=True)
@@ -86,24 +107,22 @@ def critic_view(model: MADDPG, n_episodes: int, alpha: float, seed: int = EVAL_S
                 features = policy.critic.encode(obs)
                 quantiles = policy.critic.quantiles_from_features(features, joint)[0]  # (N, n_q)
             episode_depths.append((quantiles.mean(dim=-1) - cvar(quantiles, alpha)).numpy())
-            before = (env.positions[:, 0] <= x_min) & (env.positions[:, 1] > y_min) & (env.positions[:, 1] < y_max)
+            before, around = choice_steps(env)
             if before.any():
                 objectives = (lambda q: q.mean(dim=-1), lambda q: cvar(q, alpha))
                 gradients = [g[0].numpy() for g in own_action_gradients(policy.critic, features, joint, objectives)]
-                around = np.where(env.positions[:, 1] >= 0.0, 1.0, -1.0)  # the nearer edge's side
                 for i in np.flatnonzero(before):
                     around_mean.append(bool(gradients[0][i, 1] * around[i] > 0))
                     around_cvar.append(bool(gradients[1][i, 1] * around[i] > 0))
             observations, *_ = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
-            inside = in_zone(env.positions)
-            inside_after.append(inside)
-            episode_phases.append(np.where(before, 0, np.where(inside, 1, 2)))
-        inside_after = np.array(inside_after)  # (T, N)
+            probabilities_after.append(env._loss_probabilities())
+            episode_phases.append(np.where(before, 0, np.where(env._in_zone(), 1, 2)))
+        probabilities_after = np.array(probabilities_after)  # (T, N)
         for t, (depth, phase) in enumerate(zip(episode_depths, episode_phases, strict=True)):
             for i in range(n_agents):
                 phases.append(int(phase[i]))
                 depths.append(float(depth[i]))
-                true_depths.append(true_tail_depth(inside_after[t:, i], gamma, alpha, env.zone_prob, env.zone_loss))
+                true_depths.append(true_tail_depth(probabilities_after[t:, i], gamma, alpha, env.zone_loss))
     return {
         "phase": np.array(phases),
         "depth": np.array(depths),
@@ -115,7 +134,8 @@ def critic_view(model: MADDPG, n_episodes: int, alpha: float, seed: int = EVAL_S
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("models", nargs="+", help="saved MADDPG models (.zip) on risky_reach_v0 with quantile critics")
+    parser.add_argument("models", nargs="+", help="saved MADDPG models (.zip) on a small risky task with quantile critics")
+    parser.add_argument("--env", choices=sorted(TASKS), default=None, help="the task (default: the id in the path)")
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--alpha", type=float, default=0.25, help="the CVaR level read")
     parser.add_argument("--seed", type=int, default=EVAL_SEED, help="seed of the first episode")
@@ -123,13 +143,16 @@ def main(argv: list[str] | None = None) -> int:
     th.set_num_threads(1)
     a = args.alpha
     print(
-        f"| model | agent-steps before / inside the zone | tail depth (mean - CVaR_{a}) before: critic / truth | "
-        f"inside: critic / truth | elsewhere: critic / truth | before the zone: the mean's / CVaR_{a}'s gradient "
-        "points around |"
+        f"| model | choice steps / steps inside the zone | tail depth (mean - CVaR_{a}) at a choice: critic / truth | "
+        f"inside: critic / truth | elsewhere: critic / truth | at a choice: the mean's / CVaR_{a}'s gradient "
+        "points to safety |"
     )
     print("|---|---|---|---|---|---|")
     for path in args.models:
-        view = critic_view(MADDPG.load(path, device="cpu"), args.episodes, args.alpha, args.seed)
+        env_id = args.env or next((env_id for env_id in TASKS if env_id in path), None)
+        if env_id is None:
+            parser.error(f"no task id in {path}: give --env")
+        view = critic_view(MADDPG.load(path, device="cpu"), args.episodes, args.alpha, args.seed, env_id)
         before, inside, elsewhere = (view["phase"] == phase for phase in (0, 1, 2))
         cells = [
             f"{view[key][mask].mean():.3f}" if mask.any() else "-"

@@ -125,9 +125,9 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
         # One draw per agent and step, inside or not, so that the random stream does not depend on the path
         losses = self._rng.random(len(inside)) < self._loss_probabilities()
         self.zone_steps += inside
-        self.zone_losses += losses
+        self.zone_losses += losses & inside
         distances = np.linalg.norm(self.landmarks - self.positions, axis=1)
-        rewards = -DISTANCE_COST * distances - self.zone_loss * losses
+        rewards = -DISTANCE_COST * distances - losses * self._loss_costs()
         self.t += 1
         truncated = self.t >= self.max_cycles
         agents = self.agents
@@ -149,6 +149,10 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
     def _loss_probabilities(self) -> np.ndarray:
         """The chance of a loss at each agent's position, (N,): ``zone_prob`` inside the zone, 0 outside."""
         return self.zone_prob * self._in_zone()
+
+    def _loss_costs(self) -> np.ndarray:
+        """What a loss costs each agent where it stands, (N,): ``zone_loss``."""
+        return np.full(len(self.positions), self.zone_loss)
 
     def _observations(self) -> dict[str, np.ndarray]:
         x, y = self.positions[:, 0], self.positions[:, 1]

@@ -6,14 +6,15 @@ it should learn.
 
 The truth is exact here: the tasks' losses do not move the agents and no observation shows them, so a deterministic
 team flies the same path whatever the draws, and the loss part of agent i's return from step t is
-``-loss * sum_k gamma^k B_{t+k}`` with ``B_k`` Bernoulli(the loss chance at the position step k ends at: ``zone_prob``
-inside risky_reach_v0's zone, the graded hazard on risky_hover_v0). Its tail depth (mean minus CVaR_alpha) is what the
+``-sum_k gamma^k c_{t+k} B_{t+k}`` with ``B_k`` Bernoulli(the loss chance at the position step k ends at: ``zone_prob``
+inside risky_reach_v0's zone, ``gust_prob`` on risky_hover_v0) and ``c_k`` the loss's cost there (``zone_loss``; a
+gust's cost graded with the depth). Its tail depth (mean minus CVaR_alpha) is what the
 critic's tail depth should be; the rest of the return is deterministic and adds nothing to the depth.
 
 For the agent-steps where the risky choice is made, it also reads where the actor's objective pulls: the gradient of
 critic i's mean and of its CVaR_alpha with respect to agent i's own action, and the share of those steps where its y
 component points to safety. On risky_reach_v0 these are the steps before the zone (left of it, inside its band of
-y), and safety is around it (towards the nearer of its top and bottom edges); on risky_hover_v0 the steps within 0.15
+y), and safety is around it (towards the nearer of its top and bottom edges); on risky_hover_v0 the steps within 0.2
 of the hazard's edge, and safety is down, out of the hazard.
 
     python experiments/risky_reach_critic_view.py runs/risky/logs/a025_s0/maddpg/risky_reach_v0_1/risky_reach_v0.zip
@@ -38,21 +39,21 @@ EVAL_SEED = 10_000  # the first evaluation episode of experiments/risky_reach_sw
 N_DRAWS = 20_000  # Monte Carlo draws of the losses for the truth's tail
 
 
-def true_tail_depth(probabilities_ahead: np.ndarray, gamma: float, alpha: float, loss: float) -> float:
+def true_tail_depth(probabilities_ahead: np.ndarray, costs_ahead: np.ndarray, gamma: float, alpha: float) -> float:
     """
     Mean minus CVaR_alpha of the loss part of a return whose steps end with a loss with ``probabilities_ahead``.
 
     :param probabilities_ahead: (H,) the loss chance of each step, the step of the read value first
+    :param costs_ahead: (H,) what a loss costs at each step
     :param gamma: the discount
     :param alpha: the CVaR level
-    :param loss: the cost of a loss
     :return: the tail depth (>= 0)
     """
-    if not probabilities_ahead.any():
+    if not (probabilities_ahead * costs_ahead).any():
         return 0.0
     rng = np.random.default_rng(0)
     draws = rng.random((N_DRAWS, len(probabilities_ahead))) < probabilities_ahead
-    losses = -loss * draws @ (gamma ** np.arange(len(probabilities_ahead)))
+    losses = -(draws * costs_ahead) @ (gamma ** np.arange(len(probabilities_ahead)))
     worst = np.sort(losses)[: max(1, int(round(alpha * N_DRAWS)))]
     return float(losses.mean() - worst.mean())
 
@@ -63,7 +64,7 @@ def choice_steps(env: RiskyReachEnv) -> tuple[np.ndarray, np.ndarray]:
     booleans, and the sign of the y move towards safety there, (N,).
     """
     if isinstance(env, risky_hover_v0.RiskyHoverEnv):
-        return np.abs(env.positions[:, 1] - env.edge) <= 0.15, -np.ones(len(env.positions))
+        return np.abs(env.positions[:, 1] - env.edge) <= 0.2, -np.ones(len(env.positions))
     x_min, _, y_min, y_max = ZONE
     x, y = env.positions[:, 0], env.positions[:, 1]
     return (x <= x_min) & (y > y_min) & (y < y_max), np.where(y >= 0.0, 1.0, -1.0)  # around: the nearer edge's side
@@ -97,7 +98,7 @@ def critic_view(
         env = task.parallel_env()
         observations, _ = env.reset(seed=seed + episode)
         n_agents = len(env.possible_agents)
-        episode_depths, episode_phases, probabilities_after = [], [], []
+        episode_depths, episode_phases, probabilities_after, costs_after = [], [], [], []
         while env.agents:
             stacked = np.stack([observations[agent] for agent in env.possible_agents])
             actions, _ = model.predict(stacked, deterministic=True)
@@ -116,13 +117,14 @@ def critic_view(
                     around_cvar.append(bool(gradients[1][i, 1] * around[i] > 0))
             observations, *_ = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
             probabilities_after.append(env._loss_probabilities())
+            costs_after.append(env._loss_costs())
             episode_phases.append(np.where(before, 0, np.where(env._in_zone(), 1, 2)))
-        probabilities_after = np.array(probabilities_after)  # (T, N)
+        probabilities_after, costs_after = np.array(probabilities_after), np.array(costs_after)  # (T, N)
         for t, (depth, phase) in enumerate(zip(episode_depths, episode_phases, strict=True)):
             for i in range(n_agents):
                 phases.append(int(phase[i]))
                 depths.append(float(depth[i]))
-                true_depths.append(true_tail_depth(probabilities_after[t:, i], gamma, alpha, env.zone_loss))
+                true_depths.append(true_tail_depth(probabilities_after[t:, i], costs_after[t:, i], gamma, alpha))
     return {
         "phase": np.array(phases),
         "depth": np.array(depths),

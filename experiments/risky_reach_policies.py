@@ -3,7 +3,7 @@ The hand-made policies of the small risky tasks on the episodes the trained team
 sb3_maddpg evaluate`` writes its results: mean ± std, worst decile (the episode-level CVaR_0.1 of team return) and the
 zone counts per episode. Its folder is the reference crosses of ``alpha_sweep_table.py --policies``.
 ``risky_reach_v0`` (``hand_made_policy``): straight ``through`` the risky zone, or ``around`` it;
-``risky_hover_v0``: holding the ``landmark`` (depth 0.05), the hazard's ``edge`` (0), or 0.05 or 0.1 outside it.
+``risky_hover_v0``: holding the ``landmark`` (depth 0.1), the hazard's ``edge`` (0), or 0.05, 0.1 or 0.15 outside it.
 
     taskset -c 1 python experiments/risky_reach_policies.py --episodes 100 --seed 10000 --out runs/risky/policies
     taskset -c 1 python experiments/risky_reach_policies.py --env risky_hover_v0 --out runs/hover/policies
@@ -22,7 +22,10 @@ from sb3_maddpg_envs import risky_hover_v0, risky_reach_v0
 #: env id -> (its module, {policy name: the argument of its ``hand_made_policy``})
 POLICIES = {
     "risky_reach_v0": (risky_reach_v0, {"through": "through", "around": "around"}),
-    "risky_hover_v0": (risky_hover_v0, {"landmark": 0.05, "edge": 0.0, "out_0.05": -0.05, "out_0.1": -0.1}),
+    "risky_hover_v0": (
+        risky_hover_v0,
+        {"landmark": 0.1, "edge": 0.0, "out_0.05": -0.05, "out_0.1": -0.1, "out_0.15": -0.15},
+    ),
 }
 
 

@@ -37,6 +37,7 @@ from sb3_maddpg_envs.risky_reach_v0 import ZONE, RiskyReachEnv
 
 EVAL_SEED = 10_000  # the first evaluation episode of experiments/risky_reach_sweep.sh
 N_DRAWS = 20_000  # Monte Carlo draws of the losses for the truth's tail
+HOLD_FROM = 15  # risky_hover_v0: the steps from which a team holds its depth (it reaches the landmark in about 13)
 
 
 def true_tail_depth(probabilities_ahead: np.ndarray, costs_ahead: np.ndarray, gamma: float, alpha: float) -> float:
@@ -86,13 +87,13 @@ def critic_view(
     :param env_id: the task, one of :data:`TASKS`
     :return: per agent-step ``phase`` (0 at a choice step, 1 inside the zone, 2 elsewhere), ``depth`` and
         ``true_depth``; per choice step ``around_mean`` and ``around_cvar`` (whether the gradient's y component points
-        to safety)
+        to safety); on risky_hover_v0, ``hold_depth``: each agent's mean depth from step ``HOLD_FROM`` on
     """
     policy = model.policy
     if policy.n_quantiles < 2:
         raise ValueError(f"{type(model).__name__} has {policy.n_quantiles} quantile: there is no tail to read")
     gamma = float(model.gamma)
-    phases, depths, true_depths, around_mean, around_cvar = [], [], [], [], []
+    phases, depths, true_depths, around_mean, around_cvar, holds = [], [], [], [], [], []
     task = TASKS[env_id]
     for episode in range(n_episodes):
         env = task.parallel_env()
@@ -116,6 +117,8 @@ def critic_view(
                     around_mean.append(bool(gradients[0][i, 1] * around[i] > 0))
                     around_cvar.append(bool(gradients[1][i, 1] * around[i] > 0))
             observations, *_ = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
+            if isinstance(env, risky_hover_v0.RiskyHoverEnv) and env.t >= HOLD_FROM:
+                holds.append(env.positions[:, 1] - env.edge)
             probabilities_after.append(env._loss_probabilities())
             costs_after.append(env._loss_costs())
             episode_phases.append(np.where(before, 0, np.where(env._in_zone(), 1, 2)))
@@ -131,6 +134,7 @@ def critic_view(
         "true_depth": np.array(true_depths),
         "around_mean": np.array(around_mean),
         "around_cvar": np.array(around_cvar),
+        "hold_depth": np.array(holds).reshape(-1, n_agents).mean(axis=0) if holds else np.zeros(0),
     }
 
 
@@ -147,9 +151,9 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"| model | choice steps / steps inside the zone | tail depth (mean - CVaR_{a}) at a choice: critic / truth | "
         f"inside: critic / truth | elsewhere: critic / truth | at a choice: the mean's / CVaR_{a}'s gradient "
-        "points to safety |"
+        "points to safety | hold depth by agent (risky_hover_v0) |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|")
     for path in args.models:
         env_id = args.env or next((env_id for env_id in TASKS if env_id in path), None)
         if env_id is None:
@@ -163,7 +167,9 @@ def main(argv: list[str] | None = None) -> int:
         ]
         pulls = " / ".join(f"{view[key].mean():.2f}" if view[key].size else "-" for key in ("around_mean", "around_cvar"))
         counts = f"{int(before.sum())} / {int(inside.sum())}"
-        print(f"| {path} | {counts} | {cells[0]} / {cells[1]} | {cells[2]} / {cells[3]} | {cells[4]} / {cells[5]} | {pulls} |")
+        hold = ", ".join(f"{depth:.3f}" for depth in view["hold_depth"]) or "-"
+        row = f"| {path} | {counts} | {cells[0]} / {cells[1]} | {cells[2]} / {cells[3]} | {cells[4]} / {cells[5]} | {pulls} |"
+        print(f"{row} {hold} |")
     return 0
 
 

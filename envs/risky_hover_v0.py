@@ -104,13 +104,16 @@ class RiskyHoverEnv(RiskyReachEnv):
     def _depths(self) -> np.ndarray:
         return self.positions[:, 1] - self.edge
 
-    def _in_zone(self) -> np.ndarray:
+    def inside_zone(self) -> np.ndarray:
+        """Whether each agent is deeper than the hazard's edge (d > 0), (N,) booleans."""
         return self._depths() > 0.0
 
-    def _loss_probabilities(self) -> np.ndarray:
+    def loss_probabilities(self) -> np.ndarray:
+        """The chance of a gust for each agent this step, (N,): ``gust_prob`` everywhere."""
         return np.full(len(self.positions), self.zone_prob)  # a gust can hit anywhere
 
-    def _loss_costs(self) -> np.ndarray:
+    def loss_costs(self) -> np.ndarray:
+        """What a gust costs each agent where it stands, (N,): ``gust_loss * hazard_level(d)``."""
         return self.zone_loss * hazard_level(self._depths(), self.hazard_width)
 
     def _observations(self) -> dict[str, np.ndarray]:

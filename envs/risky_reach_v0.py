@@ -121,13 +121,13 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
         if not np.isfinite(moves).all():
             raise ValueError(f"actions must be finite numbers, got {actions!r}")
         self.positions = np.clip(self.positions + SPEED * np.clip(moves, -1.0, 1.0), -1.0, 1.0)
-        inside = self._in_zone()
+        inside = self.inside_zone()
         # One draw per agent and step, inside or not, so that the random stream does not depend on the path
-        losses = self._rng.random(len(inside)) < self._loss_probabilities()
+        losses = self._rng.random(len(inside)) < self.loss_probabilities()
         self.zone_steps += inside
         self.zone_losses += losses & inside
         distances = np.linalg.norm(self.landmarks - self.positions, axis=1)
-        rewards = -DISTANCE_COST * distances - losses * self._loss_costs()
+        rewards = -DISTANCE_COST * distances - losses * self.loss_costs()
         self.t += 1
         truncated = self.t >= self.max_cycles
         agents = self.agents
@@ -142,15 +142,15 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
             infos,
         )
 
-    def _in_zone(self) -> np.ndarray:
+    def inside_zone(self) -> np.ndarray:
         """Whether each agent's position lies in the zone (counted in ``zone_steps``), (N,) booleans."""
         return in_zone(self.positions)
 
-    def _loss_probabilities(self) -> np.ndarray:
+    def loss_probabilities(self) -> np.ndarray:
         """The chance of a loss at each agent's position, (N,): ``zone_prob`` inside the zone, 0 outside."""
-        return self.zone_prob * self._in_zone()
+        return self.zone_prob * self.inside_zone()
 
-    def _loss_costs(self) -> np.ndarray:
+    def loss_costs(self) -> np.ndarray:
         """What a loss costs each agent where it stands, (N,): ``zone_loss``."""
         return np.full(len(self.positions), self.zone_loss)
 

@@ -119,9 +119,9 @@ def critic_view(
             observations, *_ = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
             if isinstance(env, risky_hover_v0.RiskyHoverEnv) and env.t >= HOLD_FROM:
                 holds.append(env.positions[:, 1] - env.edge)
-            probabilities_after.append(env._loss_probabilities())
-            costs_after.append(env._loss_costs())
-            episode_phases.append(np.where(before, 0, np.where(env._in_zone(), 1, 2)))
+            probabilities_after.append(env.loss_probabilities())
+            costs_after.append(env.loss_costs())
+            episode_phases.append(np.where(before, 0, np.where(env.inside_zone(), 1, 2)))
         probabilities_after, costs_after = np.array(probabilities_after), np.array(costs_after)  # (T, N)
         for t, (depth, phase) in enumerate(zip(episode_depths, episode_phases, strict=True)):
             for i in range(n_agents):

@@ -39,12 +39,12 @@ from collections.abc import Sequence
 
 import numpy as np
 import torch as th
-from risky_reach_critic_view import EVAL_SEED, true_tail_depth
+from risky_reach_critic_view import EVAL_SEED, choice_steps, true_tail_depth
 from stable_baselines3.common.utils import polyak_update
 
 from sb3_maddpg import MADDPG, make_multiagent_vec_env
 from sb3_maddpg.common.distributional import cvar, quantile_midpoints
-from sb3_maddpg_envs.risky_reach_v0 import DISTANCE_COST, ZONE, hand_made_policy, in_zone, parallel_env
+from sb3_maddpg_envs.risky_reach_v0 import DISTANCE_COST, hand_made_policy, in_zone, parallel_env
 
 # name: (mean_anchored_quantiles, n_quantiles, env kwargs, kappa). kappa None: the library's critic_loss (Huber kappa 1);
 # a number: ``quantile_kappa`` with that Huber threshold, for the mean-anchored form
@@ -334,7 +334,9 @@ class Truths:
     def __call__(self, inside_ahead: np.ndarray) -> tuple[list[float], list[float]]:
         key = np.asarray(inside_ahead, dtype=bool).tobytes()
         if key not in self.cache:
-            truth = [true_tail_depth(inside_ahead, self.gamma, a, self.p, self.loss) for a in self.alphas]
+            inside = np.asarray(inside_ahead, dtype=bool)
+            chances, costs = self.p * inside, np.full(len(inside), self.loss)
+            truth = [true_tail_depth(chances, costs, self.gamma, a) for a in self.alphas]
             fixed = self.fixed_point.depths(inside_ahead, self.alphas)
             self.cache[key] = (truth, fixed)
         return self.cache[key]
@@ -347,7 +349,6 @@ def read_critic(model: MADDPG, env_kwargs: dict, n_episodes: int, truths: Truths
     the tabular fixed point's depths, the team's zone steps per episode, and the one-step check of the first episode.
     """
     policy = model.policy
-    x_min, _, y_min, y_max = ZONE
     phases, depths, true_depths, fixed_depths, zone_steps, one_step = [], [], [], [], [], []
     for episode in range(n_episodes):
         env = parallel_env(**env_kwargs)
@@ -362,7 +363,7 @@ def read_critic(model: MADDPG, env_kwargs: dict, n_episodes: int, truths: Truths
                 joint = th.as_tensor(policy.scale_action(actions), dtype=th.float32).view(1, n_agents, -1)
                 quantiles = policy.critic.quantiles_from_features(policy.critic.encode(obs), joint)[0]  # (N, n_q)
             episode_depths.append([(quantiles.mean(dim=-1) - cvar(quantiles, a)).numpy() for a in truths.alphas])
-            before = (env.positions[:, 0] <= x_min) & (env.positions[:, 1] > y_min) & (env.positions[:, 1] < y_max)
+            before, _ = choice_steps(env)
             observations, *_ = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
             inside = in_zone(env.positions)
             inside_after.append(inside)
@@ -495,7 +496,6 @@ def tabular_only(variant: str, alphas: Sequence[float], n_episodes: int) -> dict
     env_kwargs = VARIANTS[variant][2]
     probe = parallel_env(**env_kwargs)
     truths = Truths(YAML["gamma"], alphas, variant, probe.zone_prob, probe.zone_loss)
-    x_min, _, y_min, y_max = ZONE
     phases, true_depths, fixed_depths = [], [], []
     for episode in range(n_episodes):
         env = parallel_env(**env_kwargs)
@@ -503,7 +503,7 @@ def tabular_only(variant: str, alphas: Sequence[float], n_episodes: int) -> dict
         episode_phases, inside_after = [], []
         while env.agents:
             obs = np.stack([observations[a] for a in env.possible_agents])
-            before = (env.positions[:, 0] <= x_min) & (env.positions[:, 1] > y_min) & (env.positions[:, 1] < y_max)
+            before, _ = choice_steps(env)
             actions = hand_made_actions(obs)
             observations, *_ = env.step({a: actions[i] for i, a in enumerate(env.possible_agents)})
             inside = in_zone(env.positions)

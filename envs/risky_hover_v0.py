@@ -88,18 +88,11 @@ class RiskyHoverEnv(RiskyReachEnv):
         self.lanes = np.linspace(-0.5, 0.5, n_agents) if n_agents > 1 else np.zeros(1)
         self._observation_space = spaces.Box(-4.0, 4.0, (6 + 2 * (n_agents - 1),), np.float32)
 
-    def reset(self, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
-        if seed is not None:
-            self._rng = np.random.default_rng(seed)
-        self.agents = self.possible_agents[:]
+    def _place(self) -> None:
         self.edge = EDGE_Y + self._rng.uniform(-self.jitter, self.jitter)
         shift = self.edge - EDGE_Y
         self.positions = np.stack([self.lanes, np.full_like(self.lanes, START_Y + shift)], axis=1)
         self.landmarks = np.stack([self.lanes, np.full_like(self.lanes, self.edge + self.landmark_depth)], axis=1)
-        self.zone_steps = np.zeros(len(self.lanes), dtype=np.int64)
-        self.zone_losses = np.zeros(len(self.lanes), dtype=np.int64)
-        self.t = 0
-        return self._observations(), self._infos()
 
     def _depths(self) -> np.ndarray:
         return self.positions[:, 1] - self.edge
@@ -116,16 +109,11 @@ class RiskyHoverEnv(RiskyReachEnv):
         """What a gust costs each agent where it stands, (N,): ``gust_loss * hazard_level(d)``."""
         return self.zone_loss * hazard_level(self._depths(), self.hazard_width)
 
-    def _observations(self) -> dict[str, np.ndarray]:
+    def _own_observations(self) -> np.ndarray:
         depths = self._depths()
-        own = np.column_stack(
+        return np.column_stack(
             [self.positions, self.landmarks - self.positions, depths, hazard_level(depths, self.hazard_width)]
         )
-        observations = {}
-        for i, agent in enumerate(self.possible_agents):
-            teammates = np.delete(self.positions, i, axis=0) - self.positions[i]
-            observations[agent] = np.concatenate([own[i], teammates.ravel()]).astype(np.float32)
-        return observations
 
 
 def hand_made_policy(observation: np.ndarray, depth: float) -> np.ndarray:

@@ -103,13 +103,17 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
         if seed is not None:
             self._rng = np.random.default_rng(seed)
         self.agents = self.possible_agents[:]
+        self._place()
+        self.zone_steps = np.zeros(len(self.positions), dtype=np.int64)
+        self.zone_losses = np.zeros(len(self.positions), dtype=np.int64)
+        self.t = 0
+        return self._observations(), self._infos()
+
+    def _place(self) -> None:
+        """This episode's starts and landmarks (``positions``, ``landmarks``), with the layout's jitter drawn."""
         lanes = self.lanes + self._rng.uniform(-self.jitter, self.jitter)
         self.positions = np.stack([np.full_like(lanes, START_X), lanes], axis=1)
         self.landmarks = np.stack([np.full_like(lanes, LANDMARK_X), lanes], axis=1)
-        self.zone_steps = np.zeros(len(lanes), dtype=np.int64)
-        self.zone_losses = np.zeros(len(lanes), dtype=np.int64)
-        self.t = 0
-        return self._observations(), self._infos()
 
     def step(self, actions: dict[str, np.ndarray]) -> tuple[dict, dict, dict, dict, dict]:
         if not self.agents:
@@ -154,10 +158,11 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
         """What a loss costs each agent where it stands, (N,): ``zone_loss``."""
         return np.full(len(self.positions), self.zone_loss)
 
-    def _observations(self) -> dict[str, np.ndarray]:
+    def _own_observations(self) -> np.ndarray:
+        """What each agent observes of itself, (N, 9): the part of its observation before its teammates."""
         x, y = self.positions[:, 0], self.positions[:, 1]
         x_min, x_max, y_min, y_max = ZONE
-        own = np.column_stack(
+        return np.column_stack(
             [
                 self.positions,
                 self.landmarks - self.positions,
@@ -168,6 +173,9 @@ class RiskyReachEnv(ParallelEnv, EzPickle):
                 in_zone(self.positions).astype(np.float64),
             ]
         )
+
+    def _observations(self) -> dict[str, np.ndarray]:
+        own = self._own_observations()
         observations = {}
         for i, agent in enumerate(self.possible_agents):
             teammates = np.delete(self.positions, i, axis=0) - self.positions[i]

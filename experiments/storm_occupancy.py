@@ -1,11 +1,14 @@
 """
-How much a team stays in the storm zone: for saved MADDPG models on ``uav_coverage_storm_cpu_v1``, the share of the
+How much a team stays in the storm zone: for saved MADDPG models on ``uav_coverage_storm_cpu_v1`` (or ``--env``, e.g.
+the redesigned ``uav_coverage_storm_cpu_v2``), the share of the
 active UAV-steps spent inside the zone (the exposure a risk-averse policy should cut), the strikes, the wall hits and
 the team return per episode, over the same random-start episodes (reset seeds ``--seed`` + e), deterministic actions.
 Strikes are few (about 4 an episode inside the zone), so their count is a noisy measure of exposure; the occupancy is
 not.
 
     python experiments/storm_occupancy.py runs/stsc/st_a1_s0.zip runs/stsc/st_a05_s0.zip --episodes 20
+    python experiments/storm_occupancy.py --env uav_coverage_storm_cpu_v2 --episodes 20 \
+        runs/storm2/logs/a1_s0/maddpg/uav_coverage_storm_cpu_v2_1/uav_coverage_storm_cpu_v2.zip
 """
 
 from __future__ import annotations
@@ -25,17 +28,18 @@ ENV_ID = "uav_coverage_storm_cpu_v1"
 EVAL_SEED = 10_000  # the first evaluation episode of experiments/uav_learning.py
 
 
-def occupancy(model: MADDPG, n_episodes: int, seed: int = EVAL_SEED) -> dict[str, float]:
+def occupancy(model: MADDPG, n_episodes: int, seed: int = EVAL_SEED, env_id: str = ENV_ID) -> dict[str, float]:
     """
     Play ``n_episodes`` deterministic episodes and measure the exposure to the storm.
 
     :param model: a team trained on (or for) the storm task
     :param n_episodes: episodes, reset seeds ``seed``, ``seed + 1``, ...
     :param seed: the first reset seed
+    :param env_id: a storm task's env id
     :return: ``inside`` (share of active UAV-steps inside the zone), ``inside_per_uav`` (per UAV), ``strikes``,
         ``wall_hits`` and ``return`` (team, per episode)
     """
-    env = make_multiagent_env(ENV_ID)
+    env = make_multiagent_env(env_id)
     core, controller = env.core, ModelController(model)
     inside_steps, active_steps = np.zeros(core.n_uavs), np.zeros(core.n_uavs)
     strikes, wall_hits, returns = [], [], []
@@ -67,12 +71,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("models", nargs="+", help="saved MADDPG models (.zip)")
     parser.add_argument("--episodes", type=int, default=20)
     parser.add_argument("--seed", type=int, default=EVAL_SEED, help="seed of the first episode")
+    parser.add_argument("--env", default=ENV_ID, help="the storm task's env id (default: %(default)s)")
     args = parser.parse_args(argv)
     th.set_num_threads(1)
     print("| model | share of UAV-steps inside the zone | per UAV | strikes / episode | wall hits / episode | team return |")
     print("|---|---|---|---|---|---|")
     for path in args.models:
-        row = occupancy(MADDPG.load(path, device="cpu"), args.episodes, args.seed)
+        row = occupancy(MADDPG.load(path, device="cpu"), args.episodes, args.seed, args.env)
         print(
             f"| {path} | {row['inside']:.3f} | {row['inside_per_uav']} | {row['strikes']:.2f} | "
             f"{row['wall_hits']:.1f} | {row['return']:.1f} |"

@@ -1,5 +1,6 @@
 """
-Can a quantile critic see the storm? For saved MADDPG models with a quantile critic on ``uav_coverage_storm_cpu_v1``,
+Can a quantile critic see the storm? For saved MADDPG models with a quantile critic on ``uav_coverage_storm_cpu_v1``
+(or ``--env``, e.g. the redesigned ``uav_coverage_storm_cpu_v2``, where p_s is 0.07 and a strike costs 0.9 at once),
 play deterministic episodes and, at every step, read critic i's quantiles of UAV i's return for the team's actual
 joint action; then compare the UAV-steps that end inside the storm zone with those outside: the quantiles' mean, their
 CVaR at 0.1 (``sb3_maddpg.common.distributional.cvar``) and the tail depth (mean minus CVaR), beside the truth the
@@ -14,6 +15,7 @@ the discounted cost of a strike, 20 grounded steps at -0.75). No difference in t
 CVaR has nothing to climb away from.
 
     python experiments/storm_critic_tail.py runs/stsc/st_a05_s0.zip runs/stsc/st_a1_s0.zip --episodes 5
+    python experiments/storm_critic_tail.py --env uav_coverage_storm_cpu_v2 --episodes 3 MODEL.zip
 """
 
 from __future__ import annotations
@@ -35,7 +37,9 @@ EVAL_SEED = 10_000  # the first evaluation episode of experiments/uav_learning.p
 ALPHA = 0.1
 
 
-def critic_tails(model: MADDPG, n_episodes: int, seed: int = EVAL_SEED, alpha: float = ALPHA) -> dict[str, np.ndarray]:
+def critic_tails(
+    model: MADDPG, n_episodes: int, seed: int = EVAL_SEED, alpha: float = ALPHA, env_id: str = ENV_ID
+) -> dict[str, np.ndarray]:
     """
     Critic i's mean and CVaR_alpha of UAV i's return at every active UAV-step, and whether the UAV ended it inside.
 
@@ -43,6 +47,7 @@ def critic_tails(model: MADDPG, n_episodes: int, seed: int = EVAL_SEED, alpha: f
     :param n_episodes: deterministic episodes, reset seeds ``seed``, ``seed + 1``, ...
     :param seed: the first reset seed
     :param alpha: the CVaR level read
+    :param env_id: a storm task's env id
     :return: ``inside`` (bool), ``mean`` and ``cvar`` (float), one entry per active UAV-step; ``out_mean`` and
         ``out_cvar`` (bool), one entry per active UAV-step inside the zone: whether the gradient of the mean (of
         CVaR_alpha) with respect to the UAV's own action points out of the zone
@@ -52,7 +57,7 @@ def critic_tails(model: MADDPG, n_episodes: int, seed: int = EVAL_SEED, alpha: f
         raise ValueError(f"{type(model).__name__} has {policy.n_quantiles} quantile: there is no tail to read")
     inside, means, cvars, out_mean, out_cvar = [], [], [], [], []
     for episode in range(n_episodes):
-        env = make_multiagent_env(ENV_ID)
+        env = make_multiagent_env(env_id)
         observations, _ = env.reset(seed=seed + episode)
         core = env.core
         while env.agents:
@@ -107,6 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("models", nargs="+", help="saved MADDPG models (.zip) with quantile critics")
     parser.add_argument("--episodes", type=int, default=5)
     parser.add_argument("--seed", type=int, default=EVAL_SEED, help="seed of the first episode")
+    parser.add_argument("--env", default=ENV_ID, help="the storm task's env id (default: %(default)s)")
     args = parser.parse_args(argv)
     th.set_num_threads(1)
     print(
@@ -115,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     print("|---|---|---|---|---|---|")
     for path in args.models:
-        tails = critic_tails(MADDPG.load(path, device="cpu"), args.episodes, args.seed)
+        tails = critic_tails(MADDPG.load(path, device="cpu"), args.episodes, args.seed, env_id=args.env)
         inside = tails["inside"]
         depth = tails["mean"] - tails["cvar"]
 
